@@ -1,0 +1,36 @@
+// Headless runs of a scene and their summary (shared by the server and the benchmark).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "app/scene_file.hpp"
+
+namespace hapticloth::app {
+
+struct Percentiles {
+  double median = 0, p99 = 0, max = 0;
+};
+/// Percentiles of a sample (copied; the input is left as is).
+Percentiles percentiles(std::vector<double> v);
+
+struct RunSummary {
+  std::string scene, solver;
+  int triangles = 0, vertices = 0;
+  double dt = 0, alpha = 0, simulated_s = 0;
+  long steps = 0;
+  Percentiles step_ms, assemble_ms, solve_ms;
+  double iterations_mean = 0;
+  double final_kinetic_energy = 0;  ///< J
+  double lowest_height = 0;         ///< m, lowest vertex along -gravity (z when g is -z)
+  double wall_s = 0;
+  cloth::IntegratorEvents events;
+  bool finite = true;
+  std::string to_json() const;
+  std::string to_text() const;
+};
+
+/// Steps the scene headless `steps` times, as fast as possible.
+RunSummary run_headless(const Scene& scene, long steps);
+
+}  // namespace hapticloth::app

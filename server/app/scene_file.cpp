@@ -1,0 +1,207 @@
+#include "app/scene_file.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <set>
+
+#include "app/material_file.hpp"
+#include "app/obj_file.hpp"
+#include "app/toml_file.hpp"
+
+namespace hapticloth::app {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string resolve(const std::string& scene_path, const std::string& rel) {
+  fs::path p(rel);
+  if (p.is_absolute()) return p.string();
+  return (fs::path(scene_path).parent_path() / p).lexically_normal().string();
+}
+
+cloth::Mesh grid_mesh(const TomlFile& f, const toml::table& t) {
+  f.only_keys(t, "mesh", {"type", "size", "resolution", "plane", "origin", "weave_angle_deg",
+                          "diagonals"});
+  cloth::GridSpec g;
+  const auto size = f.numbers(t, "mesh", "size", 2, 2);
+  if (!(size[0] > 0 && size[1] > 0)) f.fail(t.get("size"), "mesh.size", "must be > 0 (m)");
+  g.width = size[0];
+  g.height = size[1];
+  const auto res = f.numbers(t, "mesh", "resolution", 2, 2);
+  for (double r : res)
+    if (r < 1 || r > 2000 || r != std::floor(r))
+      f.fail(t.get("resolution"), "mesh.resolution", "must be two integers in [1, 2000]");
+  g.nx = static_cast<int>(res[0]);
+  g.ny = static_cast<int>(res[1]);
+  const std::string plane = f.string(t, "mesh", "plane", std::string("xy"));
+  if (plane == "xy") g.plane = cloth::GridPlane::XY;
+  else if (plane == "xz") g.plane = cloth::GridPlane::XZ;
+  else if (plane == "yz") g.plane = cloth::GridPlane::YZ;
+  else f.fail(t.get("plane"), "mesh.plane", "must be \"xy\", \"xz\" or \"yz\"");
+  if (t.get("origin")) {
+    const auto o = f.numbers(t, "mesh", "origin", 3, 3);
+    g.origin = {o[0], o[1], o[2]};
+  }
+  g.weave_angle_deg = f.number(t, "mesh", "weave_angle_deg", 0.0);
+  const std::string diag = f.string(t, "mesh", "diagonals", std::string("alternate"));
+  if (diag != "alternate" && diag != "uniform")
+    f.fail(t.get("diagonals"), "mesh.diagonals", "must be \"alternate\" or \"uniform\"");
+  g.alternate_diagonals = diag == "alternate";
+  return cloth::make_grid(g);
+}
+
+cloth::Mesh obj_mesh(const TomlFile& f, const toml::table& t) {
+  f.only_keys(t, "mesh", {"type", "path", "scale", "weave", "uv_scale"});
+  const std::string path = resolve(f.path(), f.string(t, "mesh", "path"));
+  const double scale = f.number(t, "mesh", "scale", 1.0);
+  const std::string weave = f.string(t, "mesh", "weave", std::string("uv-directions"));
+  if (weave != "uv-directions" && weave != "uv-metric")
+    f.fail(t.get("weave"), "mesh.weave", "must be \"uv-directions\" or \"uv-metric\"");
+  const double uv_scale = f.number(t, "mesh", "uv_scale", 1.0);
+  ObjMesh obj = load_obj(path);
+  cloth::Mesh m;
+  for (const auto& p : obj.positions) m.positions.push_back(scale * p);
+  for (size_t i = 0; i < obj.triangles.size(); ++i) {
+    const auto& tri = obj.triangles[i];
+    const auto& tc = obj.triangle_texcoords[i];
+    if (tc[0] < 0 || tc[1] < 0 || tc[2] < 0)
+      throw ConfigError(path + ": face " + std::to_string(i + 1) +
+                        " has no texture coordinates; the weave directions come from them");
+    const Eigen::Vector2d uv[3] = {obj.texcoords[tc[0]], obj.texcoords[tc[1]], obj.texcoords[tc[2]]};
+    std::array<std::array<double, 2>, 3> w;
+    if (weave == "uv-metric") {
+      for (int k = 0; k < 3; ++k) w[k] = {uv_scale * uv[k].x(), uv_scale * uv[k].y()};
+    } else {
+      // Direction of increasing texture u on the 3D triangle: dP/du.
+      const Eigen::Vector3d p[3] = {m.positions[tri[0]], m.positions[tri[1]], m.positions[tri[2]]};
+      const Eigen::Vector3d e1 = p[1] - p[0], e2 = p[2] - p[0];
+      const Eigen::Vector2d d1 = uv[1] - uv[0], d2 = uv[2] - uv[0];
+      const double det = d1.x() * d2.y() - d2.x() * d1.y();
+      if (std::abs(det) < 1e-14)
+        throw ConfigError(path + ": face " + std::to_string(i + 1) +
+                          " is degenerate in texture space");
+      const Eigen::Vector3d dPdu = (e1 * d2.y() - e2 * d1.y()) / det;
+      try {
+        w = cloth::flatten_triangle(p, dPdu);
+      } catch (const std::invalid_argument& e) {
+        throw ConfigError(path + ": face " + std::to_string(i + 1) + ": " + e.what());
+      }
+    }
+    m.triangles.push_back(tri);
+    m.weave_uv.push_back(w);
+  }
+  return m;
+}
+
+}  // namespace
+
+Scene load_scene(const std::string& path) {
+  const TomlFile f = TomlFile::load(path);
+  const toml::table& r = f.root();
+  f.only_keys(r, "", {"name", "material", "duration", "mesh", "pins", "physics", "integrator"});
+  Scene s;
+  s.path = path;
+  s.name = f.string(r, "", "name", fs::path(path).stem().string());
+  s.duration = f.number(r, "", "duration", 10.0);
+  if (!(s.duration > 0.0)) f.fail(r.get("duration"), "duration", "must be > 0 (s)");
+
+  s.material_path = resolve(path, f.string(r, "", "material"));
+  s.material = load_material(s.material_path);
+
+  const toml::table* mt = f.table(r, "", "mesh", true);
+  const std::string type = f.string(*mt, "mesh", "type");
+  if (type == "grid") s.mesh = grid_mesh(f, *mt);
+  else if (type == "obj") s.mesh = obj_mesh(f, *mt);
+  else f.fail(mt->get("type"), "mesh.type", "must be \"grid\" or \"obj\"");
+
+  if (const toml::table* pt = f.table(r, "", "pins", false)) {
+    f.only_keys(*pt, "pins", {"edges", "vertices", "box_min", "box_max"});
+    std::set<int> pins;
+    for (const auto& e : f.strings(*pt, "pins", "edges")) {
+      try {
+        for (int v : cloth::grid_edge(s.mesh, e)) pins.insert(v);
+      } catch (const std::invalid_argument& err) {
+        f.fail(pt->get("edges"), "pins.edges", err.what());
+      }
+    }
+    if (pt->get("vertices")) {
+      const int nv = static_cast<int>(s.mesh.positions.size());
+      for (double v : f.numbers(*pt, "pins", "vertices", 0, 1u << 30)) {
+        if (v != std::floor(v) || v < 0 || v >= nv)
+          f.fail(pt->get("vertices"), "pins.vertices",
+                 "vertex " + std::to_string(v) + " is not an index in [0, " + std::to_string(nv) + ")");
+        pins.insert(static_cast<int>(v));
+      }
+    }
+    if (pt->get("box_min") || pt->get("box_max")) {
+      const auto lo = f.numbers(*pt, "pins", "box_min", 3, 3);
+      const auto hi = f.numbers(*pt, "pins", "box_max", 3, 3);
+      for (size_t i = 0; i < s.mesh.positions.size(); ++i) {
+        const auto& p = s.mesh.positions[i];
+        if (p.x() >= lo[0] && p.x() <= hi[0] && p.y() >= lo[1] && p.y() <= hi[1] &&
+            p.z() >= lo[2] && p.z() <= hi[2])
+          pins.insert(static_cast<int>(i));
+      }
+    }
+    s.pins.assign(pins.begin(), pins.end());
+  }
+
+  if (const toml::table* ph = f.table(r, "", "physics", false)) {
+    f.only_keys(*ph, "physics", {"gravity", "air_damping"});
+    if (ph->get("gravity")) {
+      const auto g = f.numbers(*ph, "physics", "gravity", 3, 3);
+      s.integrator.gravity = {g[0], g[1], g[2]};
+    }
+    s.integrator.air_damping = f.number(*ph, "physics", "air_damping", 0.0);
+    if (s.integrator.air_damping < 0.0)
+      f.fail(ph->get("air_damping"), "physics.air_damping", "must be >= 0 (N s/m^3)");
+  }
+
+  if (const toml::table* it = f.table(r, "", "integrator", false)) {
+    f.only_keys(*it, "integrator", {"dt", "alpha", "solver", "jacobian", "pcg_tolerance",
+                                    "pcg_max_iterations", "max_halvings", "explosion_ratio"});
+    auto& c = s.integrator;
+    c.dt = f.number(*it, "integrator", "dt", c.dt);
+    if (!(c.dt > 0.0)) f.fail(it->get("dt"), "integrator.dt", "must be > 0 (s)");
+    c.alpha = f.number(*it, "integrator", "alpha", c.alpha);
+    if (!(c.alpha >= 0.5 && c.alpha <= 1.0))
+      f.fail(it->get("alpha"), "integrator.alpha", "must be in [0.5, 1] (eq. 8)");
+    s.solver = f.string(*it, "integrator", "solver", s.solver);
+    if (s.solver != "pcg" && s.solver != "cholmod" && s.solver != "cholmod-supernodal")
+      f.fail(it->get("solver"), "integrator.solver", "must be \"pcg\", \"cholmod\" or \"cholmod-supernodal\"");
+    const std::string jac = f.string(*it, "integrator", "jacobian", std::string("spd"));
+    if (jac == "spd") c.jacobian = cloth::JacobianMode::Spd;
+    else if (jac == "exact") c.jacobian = cloth::JacobianMode::Exact;
+    else f.fail(it->get("jacobian"), "integrator.jacobian", "must be \"spd\" or \"exact\"");
+    s.pcg.tolerance = f.number(*it, "integrator", "pcg_tolerance", s.pcg.tolerance);
+    if (!(s.pcg.tolerance > 0.0 && s.pcg.tolerance < 1.0))
+      f.fail(it->get("pcg_tolerance"), "integrator.pcg_tolerance", "must be in (0, 1)");
+    s.pcg.max_iterations =
+        static_cast<int>(f.integer(*it, "integrator", "pcg_max_iterations", s.pcg.max_iterations));
+    if (s.pcg.max_iterations < 1)
+      f.fail(it->get("pcg_max_iterations"), "integrator.pcg_max_iterations", "must be >= 1");
+    c.max_halvings = static_cast<int>(f.integer(*it, "integrator", "max_halvings", c.max_halvings));
+    if (c.max_halvings < 0 || c.max_halvings > 20)
+      f.fail(it->get("max_halvings"), "integrator.max_halvings", "must be in [0, 20]");
+    c.explosion_ratio = f.number(*it, "integrator", "explosion_ratio", c.explosion_ratio);
+    if (!(c.explosion_ratio > 0.0))
+      f.fail(it->get("explosion_ratio"), "integrator.explosion_ratio", "must be > 0");
+  }
+  return s;
+}
+
+cloth::ClothModel build_model(const Scene& s) {
+  try {
+    return cloth::build_model(s.mesh, s.material, s.pins);
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(s.path + ": " + e.what());
+  }
+}
+
+std::unique_ptr<cloth::Integrator> make_integrator(const Scene& s, const cloth::ClothModel& m) {
+  return std::make_unique<cloth::Integrator>(m, s.integrator, cloth::make_solver(s.solver, s.pcg));
+}
+
+}  // namespace hapticloth::app

@@ -1,0 +1,36 @@
+// Scene files (TOML): mesh, material, pins, physics and integrator settings.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cloth/integrator.hpp"
+#include "cloth/mesh.hpp"
+#include "cloth/solver.hpp"
+
+namespace hapticloth::app {
+
+struct Scene {
+  std::string path;
+  std::string name;
+  std::string material_path;
+  cloth::Mesh mesh;
+  cloth::Material material;
+  std::vector<int> pins;
+  cloth::IntegratorConfig integrator;
+  std::string solver = "pcg";
+  cloth::PcgOptions pcg;
+  double duration = 10.0;  ///< s, default run length of the main job
+};
+
+/// Loads a scene; relative paths inside it are resolved against the scene file's folder.
+/// Throws ConfigError naming file, line and key on bad input.
+Scene load_scene(const std::string& path);
+
+/// The model and integrator a scene describes.
+cloth::ClothModel build_model(const Scene& scene);
+std::unique_ptr<cloth::Integrator> make_integrator(const Scene& scene,
+                                                   const cloth::ClothModel& model);
+
+}  // namespace hapticloth::app

@@ -1,0 +1,160 @@
+#include "app/toml_file.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+namespace hapticloth::app {
+
+TomlFile TomlFile::load(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError(path + ": cannot open file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse(ss.str(), path);
+}
+
+TomlFile TomlFile::parse(const std::string& text, const std::string& name) {
+  TomlFile f;
+  f.path_ = name;
+  try {
+    f.root_ = toml::parse(text, name);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream os;
+    os << name << ":" << e.source().begin.line << ": invalid TOML: " << e.description();
+    throw ConfigError(os.str());
+  }
+  return f;
+}
+
+void TomlFile::fail(const toml::node* at, const std::string& key, const std::string& what) const {
+  std::ostringstream os;
+  os << path_;
+  if (at && at->source().begin.line > 0) os << ":" << at->source().begin.line;
+  os << ": key '" << key << "': " << what;
+  throw ConfigError(os.str());
+}
+
+const toml::node* TomlFile::find(const toml::table& t, const std::string& key) const {
+  return t.get(key);
+}
+
+double TomlFile::number(const toml::table& t, const std::string& prefix, const std::string& key,
+                        std::optional<double> fallback) const {
+  const toml::node* n = t.get(key);
+  const std::string k = join(prefix, key);
+  if (!n) {
+    if (fallback) return *fallback;
+    fail(&t, k, "missing (a number is required)");
+  }
+  if (!n->is_number()) fail(n, k, "expected a number");
+  const double v = n->value<double>().value();
+  if (!std::isfinite(v)) fail(n, k, "must be finite");
+  return v;
+}
+
+long long TomlFile::integer(const toml::table& t, const std::string& prefix,
+                            const std::string& key, std::optional<long long> fallback) const {
+  const toml::node* n = t.get(key);
+  const std::string k = join(prefix, key);
+  if (!n) {
+    if (fallback) return *fallback;
+    fail(&t, k, "missing (an integer is required)");
+  }
+  if (!n->is_integer()) fail(n, k, "expected an integer");
+  return n->value<long long>().value();
+}
+
+bool TomlFile::boolean(const toml::table& t, const std::string& prefix, const std::string& key,
+                       std::optional<bool> fallback) const {
+  const toml::node* n = t.get(key);
+  const std::string k = join(prefix, key);
+  if (!n) {
+    if (fallback) return *fallback;
+    fail(&t, k, "missing (true or false is required)");
+  }
+  if (!n->is_boolean()) fail(n, k, "expected true or false");
+  return n->value<bool>().value();
+}
+
+std::string TomlFile::string(const toml::table& t, const std::string& prefix,
+                             const std::string& key, std::optional<std::string> fallback) const {
+  const toml::node* n = t.get(key);
+  const std::string k = join(prefix, key);
+  if (!n) {
+    if (fallback) return *fallback;
+    fail(&t, k, "missing (a string is required)");
+  }
+  if (!n->is_string()) fail(n, k, "expected a string");
+  return n->value<std::string>().value();
+}
+
+std::vector<double> TomlFile::numbers(const toml::table& t, const std::string& prefix,
+                                      const std::string& key, size_t min_len,
+                                      size_t max_len) const {
+  const toml::node* n = t.get(key);
+  const std::string k = join(prefix, key);
+  if (!n) fail(&t, k, "missing (an array of numbers is required)");
+  const toml::array* a = n->as_array();
+  if (!a) fail(n, k, "expected an array of numbers");
+  if (a->size() < min_len || a->size() > max_len) {
+    std::ostringstream os;
+    os << "expected " << min_len;
+    if (max_len != min_len) os << " to " << max_len;
+    os << " numbers, got " << a->size();
+    fail(n, k, os.str());
+  }
+  std::vector<double> out;
+  for (size_t i = 0; i < a->size(); ++i) {
+    const toml::node& e = *a->get(i);
+    if (!e.is_number()) fail(&e, k + "[" + std::to_string(i) + "]", "expected a number");
+    const double v = e.value<double>().value();
+    if (!std::isfinite(v)) fail(&e, k + "[" + std::to_string(i) + "]", "must be finite");
+    out.push_back(v);
+  }
+  return out;
+}
+
+std::vector<std::string> TomlFile::strings(const toml::table& t, const std::string& prefix,
+                                           const std::string& key) const {
+  const toml::node* n = t.get(key);
+  const std::string k = join(prefix, key);
+  if (!n) return {};
+  const toml::array* a = n->as_array();
+  if (!a) fail(n, k, "expected an array of strings");
+  std::vector<std::string> out;
+  for (size_t i = 0; i < a->size(); ++i) {
+    const toml::node& e = *a->get(i);
+    if (!e.is_string()) fail(&e, k + "[" + std::to_string(i) + "]", "expected a string");
+    out.push_back(e.value<std::string>().value());
+  }
+  return out;
+}
+
+const toml::table* TomlFile::table(const toml::table& t, const std::string& prefix,
+                                   const std::string& key, bool required) const {
+  const toml::node* n = t.get(key);
+  const std::string k = join(prefix, key);
+  if (!n) {
+    if (required) fail(&t, k, "missing (a table [" + k + "] is required)");
+    return nullptr;
+  }
+  const toml::table* tt = n->as_table();
+  if (!tt) fail(n, k, "expected a table");
+  return tt;
+}
+
+void TomlFile::only_keys(const toml::table& t, const std::string& prefix,
+                         const std::vector<std::string>& allowed) const {
+  for (const auto& [key, node] : t) {
+    const std::string k(key.str());
+    if (std::find(allowed.begin(), allowed.end(), k) == allowed.end()) {
+      std::string list;
+      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      fail(&node, join(prefix, k), "unknown key (allowed here: " + list + ")");
+    }
+  }
+}
+
+}  // namespace hapticloth::app

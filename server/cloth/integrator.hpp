@@ -1,0 +1,102 @@
+// Generalized semi-implicit Euler integration (section 3.3.3, eqs. 8-9) with blow-up recovery.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "cloth/model.hpp"
+#include "cloth/solver.hpp"
+
+namespace hapticloth::cloth {
+
+struct IntegratorConfig {
+  double dt = 1e-3;     ///< s
+  double alpha = 1.0;   ///< implicitness, in [0.5, 1] (eq. 8): 1 backward Euler, 0.5 midpoint
+  Vec3 gravity{0.0, 0.0, -9.81};  ///< m/s^2
+  double air_damping = 0.0;       ///< linear air drag per area, N s / m^3 (force -c a v)
+  JacobianMode jacobian = JacobianMode::Spd;
+  int max_halvings = 4;           ///< retries a failed step with dt/2, dt/4, ... this deep
+  double explosion_ratio = 1.0;   ///< energy gain per step, relative to the energy scale,
+                                  ///< above which a step is an energy explosion
+
+  /// Throws std::invalid_argument naming the offending field.
+  void validate() const;
+};
+
+/// Counted, named blow-up events (never silent).
+struct IntegratorEvents {
+  std::uint64_t non_finite = 0;           ///< NaN or infinity in forces, solution or state
+  std::uint64_t solver_not_converged = 0; ///< iterative solver hit its iteration limit
+  std::uint64_t solver_error = 0;         ///< numerical failure inside the solver
+  std::uint64_t not_positive_definite = 0;
+  std::uint64_t jacobian_fallbacks = 0;   ///< exact Jacobian indefinite: re-solved with Spd
+  std::uint64_t energy_explosions = 0;
+  std::uint64_t retries = 0;              ///< failed (sub)steps retried at half the step
+  std::uint64_t restores = 0;             ///< steps abandoned: last good state restored, at rest
+  std::uint64_t total() const {
+    return non_finite + solver_not_converged + solver_error + not_positive_definite +
+           jacobian_fallbacks + energy_explosions + retries + restores;
+  }
+};
+
+struct StepTiming {
+  double assemble_ms = 0, solve_ms = 0, total_ms = 0;
+  int iterations = 0;  ///< solver iterations summed over substeps
+  int substeps = 0;    ///< 1 unless the step was split after a failure
+};
+
+enum class StepOutcome { Accepted, Restored };
+
+class Integrator {
+ public:
+  /// The model must outlive the integrator. Allocates all working memory here.
+  Integrator(const ClothModel& model, const IntegratorConfig& config,
+             std::unique_ptr<LinearSolver> solver);
+
+  /// Advances the state by config.dt with eq. 9:
+  ///   (M + alpha h C + alpha^2 h^2 H) dv = h (F - alpha h H v),   dx = h (v + alpha dv)
+  /// with H = -dF/dP and C = -dF/dP'. Pinned vertices move with their own velocity.
+  /// A failed step is retried with halved steps, and if that fails the state at the start of
+  /// the step is restored with zero velocity. Allocation-free after the first call.
+  StepOutcome step(ClothState& s);
+
+  /// External forces (N) per vertex, applied on every step until changed. Sized to vertices.
+  std::vector<Vec3>& external_forces() { return f_ext_; }
+
+  const IntegratorEvents& events() const { return events_; }
+  const StepTiming& last_timing() const { return timing_; }
+  const IntegratorConfig& config() const { return cfg_; }
+  const LinearSolver& solver() const { return *solver_; }
+  const ClothModel& model() const { return model_; }
+
+  /// The system matrix of eq. 9 at state s for step h (for tests and analysis).
+  const SymCsr& system_matrix(const ClothState& s, double h, JacobianMode mode);
+
+ private:
+  enum class Attempt { Ok, Failed };
+  Attempt advance(ClothState& s, double h, int depth);
+  Attempt single_step(ClothState& s, double h);
+  bool assemble(const ClothState& s, double h, JacobianMode mode);
+  double elastic_energy(const std::vector<Vec3>& x) const;
+  bool state_finite(const ClothState& s) const;
+
+  const ClothModel& model_;
+  IntegratorConfig cfg_;
+  std::unique_ptr<LinearSolver> solver_;
+  IntegratorEvents events_;
+  StepTiming timing_;
+  bool viscous_;
+  double energy_floor_;
+
+  SymCsr A_;
+  Eigen::VectorXd rhs_, dv_;
+  std::vector<Vec3> f_ext_;
+  std::vector<Vec3> xn_, vn_;              // candidate state of a (sub)step
+  std::vector<Vec3> x_start_, v_start_;    // state at the start of step()
+  double energy_old_ = 0.0, energy_scale_ = 0.0;
+};
+
+}  // namespace hapticloth::cloth

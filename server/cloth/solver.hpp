@@ -1,0 +1,52 @@
+// Linear solvers for the symmetric positive definite system of eq. 9, behind one interface.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "cloth/sparse.hpp"
+
+namespace hapticloth::cloth {
+
+enum class SolveStatus { Ok, NotConverged, NotPositiveDefinite, NumericalError };
+const char* to_string(SolveStatus s);
+
+/// Contract: analyze() is called once per sparsity pattern and may allocate; solve() is called
+/// every step with the same pattern (values change) and allocates nothing after its first call.
+class LinearSolver {
+ public:
+  virtual ~LinearSolver() = default;
+  virtual const char* name() const = 0;
+  /// Symbolic work that depends on the pattern only.
+  virtual void analyze(const SymCsr& A) = 0;
+  /// Solves A x = b. On entry x holds a starting guess (iterative solvers use it).
+  virtual SolveStatus solve(const SymCsr& A, const double* b, double* x) = 0;
+  /// Iterations of the last solve (1 for a direct solve).
+  int iterations() const { return iterations_; }
+  /// Relative residual |b - A x| / |b| of the last solve (iterative solvers).
+  double residual() const { return residual_; }
+
+ protected:
+  int iterations_ = 0;
+  double residual_ = 0.0;
+};
+
+struct PcgOptions {
+  double tolerance = 1e-6;  ///< relative residual |r| / |b|
+  int max_iterations = 500;
+};
+
+/// Preconditioned conjugate gradients on Eigen vectors, with a 3x3 block-Jacobi
+/// preconditioner, warm start from the guess in x, and preallocated workspace (Eigen's
+/// ConjugateGradient allocates its work vectors on every call, which the 1 kHz path must not).
+std::unique_ptr<LinearSolver> make_pcg_solver(const PcgOptions& opt);
+
+enum class CholmodMode { Auto, Simplicial, Supernodal };
+/// CHOLMOD sparse Cholesky: symbolic analysis (fill-reducing ordering) once per pattern,
+/// numeric factorization every solve.
+std::unique_ptr<LinearSolver> make_cholmod_solver(CholmodMode mode = CholmodMode::Simplicial);
+
+/// "pcg" or "cholmod"; throws std::invalid_argument otherwise.
+std::unique_ptr<LinearSolver> make_solver(const std::string& name, const PcgOptions& pcg);
+
+}  // namespace hapticloth::cloth
