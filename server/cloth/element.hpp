@@ -42,11 +42,16 @@ struct ElementEval {
   Vec3 f[3];            ///< force on each vertex, N (elastic + viscous)
   Mat3 H[3][3];         ///< stiffness: -dF/dP (symmetric; see JacobianMode), N/m
   Mat3 C[3][3];         ///< damping: -dF/dP', N s/m (symmetric PSD)
+  /// Factored form of the symmetric H (and of C with Pc, Qc, Wc): for vertices k, l
+  ///   H_kl = ru_k ru_l P + rv_k rv_l Q + ru_k rv_l W + rv_k ru_l W^T
+  /// (without the non-symmetric viscous part). Assembly works on this form directly.
+  Mat3 P, Q, W, Pc, Qc, Wc;
 };
 
 /// Options of one evaluation.
 struct EvalRequest {
-  bool hessian = true;          ///< fill H (and C when viscous)
+  bool hessian = true;          ///< compute the Jacobians (factored form P, Q, W, Pc, Qc, Wc)
+  bool blocks = true;           ///< also expand them into the 3x3 blocks H and C
   JacobianMode mode = JacobianMode::Spd;
   bool viscous_nonsymmetric = false;  ///< add the non-symmetric viscous part of -dF/dP
                                       ///< (exact Jacobian, for checks; not used in the solve)
@@ -64,6 +69,10 @@ double element_energy(const ElementRest& e, const Material& m, const Vec3& xa, c
 /// Allocation-free.
 void evaluate_element(const ElementRest& e, const Material& m, const Vec3* const x[3],
                       const Vec3* const vel[3], const EvalRequest& req, ElementEval& out);
+
+/// out = c1 P + c2 Q + c3 W + c4 W^T (the block formula of the factored Jacobians).
+void combine_blocks(Mat3& out, double c1, const Mat3& P, double c2, const Mat3& Q, double c3,
+                    const Mat3& W, double c4);
 
 /// Eq. 7 as printed in the paper (the small-shear form of the energy gradient), elastic only.
 void element_forces_eq7(const ElementRest& e, const Material& m, const Vec3& xa, const Vec3& xb,

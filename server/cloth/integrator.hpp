@@ -80,7 +80,6 @@ class Integrator {
   Attempt advance(ClothState& s, double h, int depth);
   Attempt single_step(ClothState& s, double h);
   bool assemble(const ClothState& s, double h, JacobianMode mode);
-  double elastic_energy(const std::vector<Vec3>& x) const;
   bool state_finite(const ClothState& s) const;
 
   const ClothModel& model_;

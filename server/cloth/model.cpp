@@ -78,6 +78,7 @@ ClothModel build_model(const Mesh& mesh, const Material& material, const std::ve
   }
   SymCsr& P = m.pattern;
   P.n = 3 * nf;
+  P.block3 = true;
   P.rowptr.assign(P.n + 1, 0);
   m.row_stride.assign(nf, 0);
   for (int f = 0; f < nf; ++f) {

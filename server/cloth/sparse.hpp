@@ -13,6 +13,10 @@ struct SymCsr {
   std::vector<int> col;     ///< nnz entries, sorted within each row
   std::vector<double> val;  ///< nnz entries
 
+  /// True if rows come in triples (3i, 3i+1, 3i+2) with identical column lists made of whole
+  /// 3-column blocks: the 3x3 block structure of a vertex system. Enables the blocked product.
+  bool block3 = false;
+
   int nnz() const { return static_cast<int>(col.size()); }
   /// y = A x (allocation-free).
   void multiply(const double* x, double* y) const;

@@ -254,6 +254,27 @@ TEST(Element, AgreesWithEquation7AsShearVanishes) {
   }
 }
 
+// The factored form (P, Q, W) used by the assembly reproduces every block of H and C.
+TEST(Element, FactoredJacobiansReproduceBlocks) {
+  std::mt19937 rng(17);
+  const auto m = test::denim(0.6);
+  for (int trial = 0; trial < 30; ++trial) {
+    auto t = test::random_triangle(rng, trial % 3);
+    const auto ev = eval(t.rest, m, t.x, t.v, cloth::JacobianMode::Spd);
+    for (int k = 0; k < 3; ++k)
+      for (int l = 0; l < 3; ++l) {
+        Mat3 h, c;
+        const auto& r = t.rest;
+        cloth::combine_blocks(h, r.ru[k] * r.ru[l], ev.P, r.rv[k] * r.rv[l], ev.Q, r.ru[k] * r.rv[l],
+                              ev.W, r.rv[k] * r.ru[l]);
+        cloth::combine_blocks(c, r.ru[k] * r.ru[l], ev.Pc, r.rv[k] * r.rv[l], ev.Qc,
+                              r.ru[k] * r.rv[l], ev.Wc, r.rv[k] * r.ru[l]);
+        EXPECT_LE((h - ev.H[k][l]).norm(), 1e-12 * (1 + ev.H[k][l].norm()));
+        EXPECT_LE((c - ev.C[k][l]).norm(), 1e-12 * (1 + ev.C[k][l].norm()));
+      }
+  }
+}
+
 TEST(Element, EvaluationAllocatesNothing) {
   std::mt19937 rng(3);
   auto t = test::random_triangle(rng, 2);
