@@ -42,7 +42,7 @@ cloth::StrainStressCurve parse_curve(const TomlFile& f, const toml::table& root,
   const double max_strain = f.number(*t, key, "max_strain", 0.3);
   if (!(max_strain > 0.0)) f.fail(t->get("max_strain"), key + ".max_strain", "must be > 0");
   try {
-    c.validate(key, max_strain);
+    c.validate("", max_strain);
   } catch (const std::invalid_argument& e) {
     f.fail(t, key, e.what());
   }

@@ -61,6 +61,7 @@ ObjMesh load_obj(const std::string& path) {
       for (size_t k = 1; k + 1 < corners.size(); ++k) {
         m.triangles.push_back({corners[0][0], corners[k][0], corners[k + 1][0]});
         m.triangle_texcoords.push_back({corners[0][1], corners[k][1], corners[k + 1][1]});
+        m.triangle_lines.push_back(lineno);
       }
     }
   }

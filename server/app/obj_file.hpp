@@ -14,6 +14,7 @@ struct ObjMesh {
   std::vector<Eigen::Vector2d> texcoords;
   std::vector<std::array<int, 3>> triangles;           ///< position indices (0-based)
   std::vector<std::array<int, 3>> triangle_texcoords;  ///< texcoord indices, -1 if absent
+  std::vector<int> triangle_lines;                     ///< line of the face record in the file
 };
 
 /// Reads v, vt and f records (polygons are fan-triangulated; other records are ignored).

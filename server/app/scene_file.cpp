@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <set>
+#include <sstream>
 
 #include "app/material_file.hpp"
 #include "app/obj_file.hpp"
@@ -66,9 +67,9 @@ cloth::Mesh obj_mesh(const TomlFile& f, const toml::table& t) {
   for (size_t i = 0; i < obj.triangles.size(); ++i) {
     const auto& tri = obj.triangles[i];
     const auto& tc = obj.triangle_texcoords[i];
+    const std::string where = path + ":" + std::to_string(obj.triangle_lines[i]) + ": face";
     if (tc[0] < 0 || tc[1] < 0 || tc[2] < 0)
-      throw ConfigError(path + ": face " + std::to_string(i + 1) +
-                        " has no texture coordinates; the weave directions come from them");
+      throw ConfigError(where + " has no texture coordinates; the weave directions come from them");
     const Eigen::Vector2d uv[3] = {obj.texcoords[tc[0]], obj.texcoords[tc[1]], obj.texcoords[tc[2]]};
     std::array<std::array<double, 2>, 3> w;
     if (weave == "uv-metric") {
@@ -80,13 +81,12 @@ cloth::Mesh obj_mesh(const TomlFile& f, const toml::table& t) {
       const Eigen::Vector2d d1 = uv[1] - uv[0], d2 = uv[2] - uv[0];
       const double det = d1.x() * d2.y() - d2.x() * d1.y();
       if (std::abs(det) < 1e-14)
-        throw ConfigError(path + ": face " + std::to_string(i + 1) +
-                          " is degenerate in texture space");
+        throw ConfigError(where + " is degenerate in texture space");
       const Eigen::Vector3d dPdu = (e1 * d2.y() - e2 * d1.y()) / det;
       try {
         w = cloth::flatten_triangle(p, dPdu);
       } catch (const std::invalid_argument& e) {
-        throw ConfigError(path + ": face " + std::to_string(i + 1) + ": " + e.what());
+        throw ConfigError(where + ": " + e.what());
       }
     }
     m.triangles.push_back(tri);
@@ -108,7 +108,11 @@ Scene load_scene(const std::string& path) {
   if (!(s.duration > 0.0)) f.fail(r.get("duration"), "duration", "must be > 0 (s)");
 
   s.material_path = resolve(path, f.string(r, "", "material"));
-  s.material = load_material(s.material_path);
+  try {
+    s.material = load_material(s.material_path);
+  } catch (const ConfigError& e) {
+    f.fail(r.get("material"), "material", e.what());
+  }
 
   const toml::table* mt = f.table(r, "", "mesh", true);
   const std::string type = f.string(*mt, "mesh", "type");
@@ -129,9 +133,11 @@ Scene load_scene(const std::string& path) {
     if (pt->get("vertices")) {
       const int nv = static_cast<int>(s.mesh.positions.size());
       for (double v : f.numbers(*pt, "pins", "vertices", 0, 1u << 30)) {
-        if (v != std::floor(v) || v < 0 || v >= nv)
-          f.fail(pt->get("vertices"), "pins.vertices",
-                 "vertex " + std::to_string(v) + " is not an index in [0, " + std::to_string(nv) + ")");
+        if (v != std::floor(v) || v < 0 || v >= nv) {
+          std::ostringstream os;
+          os << "vertex " << v << " is not an index in [0, " << nv << ")";
+          f.fail(pt->get("vertices"), "pins.vertices", os.str());
+        }
         pins.insert(static_cast<int>(v));
       }
     }

@@ -70,7 +70,7 @@ double StrainStressCurve::energy(double eps) const {
 
 void StrainStressCurve::validate(const std::string& what, double max_strain) const {
   auto fail = [&](const std::string& msg) {
-    throw std::invalid_argument(what + ": " + msg);
+    throw std::invalid_argument(what.empty() ? msg : what + ": " + msg);
   };
   if (segments < 1 || segments > 3) fail("between 1 and 3 segments are allowed (appendix A.2)");
   if (knots[0] != 0.0) fail("the first knot E_0 must be 0");

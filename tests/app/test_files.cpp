@@ -389,8 +389,9 @@ TEST_F(FilesTest, ScenePinVertexOutOfRange) {
 
 TEST_F(FilesTest, SceneMissingMaterialFile) {
   const auto material = (dir_ / "missing.toml").string();
+  const auto path = (dir_ / "scene.toml").string();
   expect_config_error([&] { scene(with_line(kScene, 2, "material = \"missing.toml\"")); },
-                      {material, "cannot open"});
+                      {path + at_line(2), "key 'material'", material, "cannot open"});
 }
 
 TEST_F(FilesTest, SceneErrorInMaterialNamesTheMaterialFile) {
@@ -507,7 +508,7 @@ TEST_F(FilesTest, ObjFaceWithoutTextureCoordinates) {
   write("cloth.toml", kMaterial);
   const auto obj = write("meshes/strip.obj", with_line(kStripObj, 16, "f 1 3 4"));
   const auto path = write("scenes/strip.toml", obj_scene(""));
-  expect_config_error([&] { load_scene(path); }, {obj, "face 2", "no texture coordinates"});
+  expect_config_error([&] { load_scene(path); }, {obj + at_line(16), "face", "no texture coordinates"});
 }
 
 TEST_F(FilesTest, ObjVertexWithTwoNumbers) {
