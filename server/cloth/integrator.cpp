@@ -37,6 +37,8 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
   const int n = A_.n;
   rhs_.setZero(n);
   dv_.setZero(n);
+  dv_prev_.setZero(n);
+  guess_.setZero(n);
   const int nv = model_.num_vertices();
   f_ext_.assign(nv, Vec3::Zero());
   xn_.assign(nv, Vec3::Zero());
@@ -150,6 +152,10 @@ Integrator::Attempt Integrator::single_step(ClothState& s, double h) {
   timing_.assemble_ms += ms_since(t0);
 
   auto t1 = Clock::now();
+  // Warm start: extrapolate the last two solutions linearly (dv changes smoothly in time).
+  guess_ = 2.0 * dv_ - dv_prev_;
+  dv_prev_ = dv_;
+  dv_ = guess_;
   SolveStatus st = solver_->solve(A_, rhs_.data(), dv_.data());
   timing_.iterations += solver_->iterations();
   if (st == SolveStatus::NotPositiveDefinite && mode == JacobianMode::Exact) {
@@ -172,9 +178,11 @@ Integrator::Attempt Integrator::single_step(ClothState& s, double h) {
       default: ++events_.solver_error; break;
     }
     dv_.setZero();
+    dv_prev_.setZero();
     return Attempt::Failed;
   }
   if (!dv_.allFinite()) {
+    dv_prev_.setZero();
     ++events_.non_finite;
     dv_.setZero();
     return Attempt::Failed;
@@ -242,6 +250,7 @@ StepOutcome Integrator::step(ClothState& s) {
       for (auto& v : s.v) v.setZero();
     }
     dv_.setZero();
+    dv_prev_.setZero();
     timing_.total_ms = ms_since(t0);
     return StepOutcome::Restored;
   }
@@ -258,6 +267,7 @@ StepOutcome Integrator::step(ClothState& s) {
       s.v[i] = model_.pinned[i] ? v_start_[i] : Vec3::Zero();
     }
     dv_.setZero();
+    dv_prev_.setZero();
     out = StepOutcome::Restored;
   }
   s.time = t_start + cfg_.dt;

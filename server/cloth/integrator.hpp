@@ -91,7 +91,7 @@ class Integrator {
   double energy_floor_;
 
   SymCsr A_;
-  Eigen::VectorXd rhs_, dv_;
+  Eigen::VectorXd rhs_, dv_, dv_prev_, guess_;  // dv_prev_: the solution before dv_
   std::vector<Vec3> f_ext_;
   std::vector<Vec3> xn_, vn_;              // candidate state of a (sub)step
   std::vector<Vec3> x_start_, v_start_;    // state at the start of step()
