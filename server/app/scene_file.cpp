@@ -167,7 +167,8 @@ Scene load_scene(const std::string& path) {
 
   if (const toml::table* it = f.table(r, "", "integrator", false)) {
     f.only_keys(*it, "integrator", {"dt", "alpha", "solver", "jacobian", "pcg_tolerance",
-                                    "pcg_max_iterations", "max_halvings", "explosion_ratio"});
+                                    "pcg_max_iterations", "pcg_float_matrix", "max_halvings",
+                                    "explosion_ratio"});
     auto& c = s.integrator;
     c.dt = f.number(*it, "integrator", "dt", c.dt);
     if (!(c.dt > 0.0)) f.fail(it->get("dt"), "integrator.dt", "must be > 0 (s)");
@@ -186,6 +187,8 @@ Scene load_scene(const std::string& path) {
       f.fail(it->get("pcg_tolerance"), "integrator.pcg_tolerance", "must be in (0, 1)");
     s.pcg.max_iterations =
         static_cast<int>(f.integer(*it, "integrator", "pcg_max_iterations", s.pcg.max_iterations));
+    s.pcg.single_precision_matrix =
+        f.boolean(*it, "integrator", "pcg_float_matrix", s.pcg.single_precision_matrix);
     if (s.pcg.max_iterations < 1)
       f.fail(it->get("pcg_max_iterations"), "integrator.pcg_max_iterations", "must be >= 1");
     c.max_halvings = static_cast<int>(f.integer(*it, "integrator", "max_halvings", c.max_halvings));

@@ -13,7 +13,245 @@ using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
+
+constexpr double kInvSqrt2 = 0.70710678118654752440;
+
+// Psi, sigma and d sigma / d eps of one curve in one pass (the same law as
+// StrainStressCurve::evaluate and ::energy, which the element tests check; inlined here because
+// the assembly calls it three times per element).
+inline __attribute__((always_inline)) void curve_all(const StrainStressCurve& c, double eps,
+                                                     double& psi, double& s, double& ds) {
+  double e = eps, sign = 1.0;
+  if (eps < 0.0) {
+    if (!c.odd) {
+      const double k = c.compression_scale * c.B[0][1];
+      s = c.B[0][0] + k * eps;
+      ds = k;
+      psi = eps * (c.B[0][0] + 0.5 * k * eps);
+      return;
+    }
+    e = -eps;
+    sign = -1.0;
+  }
+  const auto& b0 = c.B[0];
+  s = b0[0] + e * (b0[1] + e * (b0[2] + e * b0[3]));
+  ds = b0[1] + e * (2.0 * b0[2] + 3.0 * e * b0[3]);
+  psi = e * (b0[0] + e * (0.5 * b0[1] + e * (b0[2] * (1.0 / 3.0) + 0.25 * e * b0[3])));
+  for (int i = 1; i < c.segments; ++i) {
+    const double d = e - c.knots[i];
+    if (d <= 0.0) break;
+    const auto& bi = c.B[i];
+    s += d * d * (bi[2] + d * bi[3]);
+    ds += d * (2.0 * bi[2] + 3.0 * d * bi[3]);
+    psi += d * d * d * (bi[2] * (1.0 / 3.0) + 0.25 * d * bi[3]);
+  }
+  s *= sign;  // odd law: the tangent and the energy are even
+}
+
+// Symmetric 3x3 as (xx, yy, zz, xy, xz, yz).
+struct Sym3 {
+  double m[6];
+};
+
+inline __attribute__((always_inline)) void sym_set(Sym3& S, double c_id) {
+  S.m[0] = S.m[1] = S.m[2] = c_id;
+  S.m[3] = S.m[4] = S.m[5] = 0.0;
+}
+// S += c n n^T
+inline __attribute__((always_inline)) void sym_rank1(Sym3& S, double c, const double n[3]) {
+  S.m[0] += c * n[0] * n[0];
+  S.m[1] += c * n[1] * n[1];
+  S.m[2] += c * n[2] * n[2];
+  S.m[3] += c * n[0] * n[1];
+  S.m[4] += c * n[0] * n[2];
+  S.m[5] += c * n[1] * n[2];
+}
+
 }  // namespace
+
+// One pass over the elements for eq. 9: forces, the factored Jacobians (same algebra as
+// evaluate_element, which the finite-difference tests check; a test checks that this assembly
+// equals the one built from evaluate_element's blocks), the system blocks
+//   alpha^2 h^2 H_kl + alpha h C_kl
+// scattered into the CSR values, and the right-hand side h (F - alpha h H v).
+// Only the blocks k <= l are formed; (l, k) is written as the transpose.
+template <bool kViscous, bool kSpd>
+double Integrator::assemble_elements(const ClothState& s, double h) {
+  const double a = cfg_.alpha, ah = a * h, aahh = a * a * h * h;
+  const Material& mat = model_.material;
+  const double eta_u = mat.weft.viscosity, eta_v = mat.warp.viscosity, eta_s = mat.shear.viscosity;
+  double* const Aval = A_.val.data();
+  double* const rhs = rhs_.data();
+  const int* const free_index = model_.free_index.data();
+  const int* const row_stride = model_.row_stride.data();
+  const Vec3* const X = s.x.data();
+  const Vec3* const Vel = s.v.data();
+  double e_el = 0.0;
+  const auto& els = model_.elements;
+  const int ne = static_cast<int>(els.size());
+  for (int t = 0; t < ne; ++t) {
+    const ElementRest& e = els[t];
+    const double* ru = e.ru;
+    const double* rv = e.rv;
+    const double A = e.area;
+    const double* x0 = X[e.v[0]].data();
+    const double* x1 = X[e.v[1]].data();
+    const double* x2 = X[e.v[2]].data();
+    const double* v0 = Vel[e.v[0]].data();
+    const double* v1 = Vel[e.v[1]].data();
+    const double* v2 = Vel[e.v[2]].data();
+    // Eq. 3: U, V and the diagonals S = U + V, D = U - V of eq. 4.
+    double U[3], V[3], S[3], D[3], Uv[3], Vv[3];
+    for (int i = 0; i < 3; ++i) {
+      U[i] = ru[0] * x0[i] + ru[1] * x1[i] + ru[2] * x2[i];
+      V[i] = rv[0] * x0[i] + rv[1] * x1[i] + rv[2] * x2[i];
+      S[i] = U[i] + V[i];
+      D[i] = U[i] - V[i];
+      Uv[i] = ru[0] * v0[i] + ru[1] * v1[i] + ru[2] * v2[i];
+      Vv[i] = rv[0] * v0[i] + rv[1] * v1[i] + rv[2] * v2[i];
+    }
+    const double qu = std::sqrt(U[0] * U[0] + U[1] * U[1] + U[2] * U[2]);
+    const double qv = std::sqrt(V[0] * V[0] + V[1] * V[1] + V[2] * V[2]);
+    const double qs = std::sqrt(S[0] * S[0] + S[1] * S[1] + S[2] * S[2]);
+    const double qd = std::sqrt(D[0] * D[0] + D[1] * D[1] + D[2] * D[2]);
+    const double iu = qu > 0.0 ? 1.0 / qu : 0.0, iv = qv > 0.0 ? 1.0 / qv : 0.0;
+    const double is = qs > 0.0 ? 1.0 / qs : 0.0, id = qd > 0.0 ? 1.0 / qd : 0.0;
+    double nu[3], nv[3], ns[3], nd[3], va[3], vb[3];
+    for (int i = 0; i < 3; ++i) {
+      nu[i] = U[i] * iu;
+      nv[i] = V[i] * iv;
+      ns[i] = S[i] * is;
+      nd[i] = D[i] * id;
+      va[i] = (ns[i] - nd[i]) * kInvSqrt2;  // d eps_uv / dU
+      vb[i] = (ns[i] + nd[i]) * kInvSqrt2;  // d eps_uv / dV
+    }
+    // Eq. 4 strains through the material laws.
+    const double e_uu = qu - 1.0, e_vv = qv - 1.0, e_uv = (qs - qd) * kInvSqrt2;
+    double p_uu, s_uu, k_uu, p_vv, s_vv, k_vv, p_uv, s_uv, k_uv;
+    curve_all(mat.weft, e_uu, p_uu, s_uu, k_uu);
+    curve_all(mat.warp, e_vv, p_vv, s_vv, k_vv);
+    curve_all(mat.shear, e_uv, p_uv, s_uv, k_uv);
+    e_el += A * (p_uu + p_vv + p_uv);
+    // Eq. 6 strain rates and viscous stresses.
+    double r_uu = 0.0, r_vv = 0.0, r_uv = 0.0;
+    if constexpr (kViscous) {
+      double du = 0, dv = 0, ds = 0, dd = 0;
+      for (int i = 0; i < 3; ++i) {
+        du += nu[i] * Uv[i];
+        dv += nv[i] * Vv[i];
+        ds += ns[i] * (Uv[i] + Vv[i]);
+        dd += nd[i] * (Uv[i] - Vv[i]);
+      }
+      r_uu = eta_u * du;
+      r_vv = eta_v * dv;
+      r_uv = eta_s * (ds - dd) * kInvSqrt2;
+    }
+    const double t_uu = s_uu + r_uu, t_vv = s_vv + r_vv, t_uv = s_uv + r_uv;
+    // Forces F_k = ru_k Fu + rv_k Fv (the exact gradient; eq. 7 for small shear).
+    double Fu[3], Fv[3];
+    for (int i = 0; i < 3; ++i) {
+      Fu[i] = -A * (t_uu * nu[i] + t_uv * va[i]);
+      Fv[i] = -A * (t_vv * nv[i] + t_uv * vb[i]);
+    }
+    // Factored Jacobian (see ElementEval): with c_f = A g_f / q_f for each fibre,
+    //   P = (cu + cs + cd) I + (A ku - cu) nu nu^T - cs ns ns^T - cd nd nd^T + A ks a a^T
+    //   Q = (cv + cs + cd) I + (A kv - cv) nv nv^T - cs ns ns^T - cd nd nd^T + A ks b b^T
+    //   W = (cs - cd) I - cs ns ns^T + cd nd nd^T + A ks a b^T
+    auto clamp = [](double c) { return (kSpd && c < 0.0) ? 0.0 : c; };
+    const double ku = clamp(k_uu), kv = clamp(k_vv), ks = clamp(k_uv);
+    const double cu = A * clamp(t_uu) * iu, cv = A * clamp(t_vv) * iv;
+    const double cs = A * clamp(t_uv * kInvSqrt2) * is, cd = A * clamp(-t_uv * kInvSqrt2) * id;
+    const double Aks = A * ks;
+    Sym3 SD;  // -cs ns ns^T - cd nd nd^T
+    sym_set(SD, 0.0);
+    sym_rank1(SD, -cs, ns);
+    sym_rank1(SD, -cd, nd);
+    Sym3 P = SD, Q = SD;
+    for (int i = 0; i < 3; ++i) {
+      P.m[i] += cu + cs + cd;
+      Q.m[i] += cv + cs + cd;
+    }
+    sym_rank1(P, A * ku - cu, nu);
+    sym_rank1(P, Aks, va);
+    sym_rank1(Q, A * kv - cv, nv);
+    sym_rank1(Q, Aks, vb);
+    double W[9];  // column-major, W[3 * c + r]
+    for (int c = 0; c < 3; ++c)
+      for (int r = 0; r < 3; ++r)
+        W[3 * c + r] = (r == c ? cs - cd : 0.0) - cs * ns[r] * ns[c] + cd * nd[r] * nd[c] +
+                       Aks * va[r] * vb[c];
+    auto full = [](const Sym3& S, double out[9]) {
+      out[0] = S.m[0]; out[4] = S.m[1]; out[8] = S.m[2];
+      out[1] = out[3] = S.m[3];
+      out[2] = out[6] = S.m[4];
+      out[5] = out[7] = S.m[5];
+    };
+    double Pf[9], Qf[9];
+    full(P, Pf);
+    full(Q, Qf);
+    // H v per vertex: ru_k hu + rv_k hv with hu = P Uv + W Vv, hv = Q Vv + W^T Uv.
+    double gu[3], gv[3];
+    for (int r = 0; r < 3; ++r) {
+      double su = 0.0, sv = 0.0;
+      for (int c = 0; c < 3; ++c) {
+        su += Pf[3 * c + r] * Uv[c] + W[3 * c + r] * Vv[c];
+        sv += Qf[3 * c + r] * Vv[c] + W[3 * r + c] * Uv[c];
+      }
+      // Right-hand side of eq. 9 per vertex: h (F_k - alpha h H v); pinned neighbours' velocity
+      // enters here, which is how their prescribed motion reaches the solve.
+      gu[r] = h * (Fu[r] - ah * su);
+      gv[r] = h * (Fv[r] - ah * sv);
+    }
+    // System blocks: alpha^2 h^2 H + alpha h C, in the same factored form.
+    double Ps[9], Qs[9], Ws[9];
+    for (int i = 0; i < 9; ++i) {
+      Ps[i] = aahh * Pf[i];
+      Qs[i] = aahh * Qf[i];
+      Ws[i] = aahh * W[i];
+    }
+    if constexpr (kViscous) {
+      // C = A sum eta grad(eps) grad(eps)^T: Pc = eta_u nu nu^T + eta_s a a^T, ...
+      const double c1 = ah * A * eta_u, c2 = ah * A * eta_v, c3 = ah * A * eta_s;
+      for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r) {
+          Ps[3 * c + r] += c1 * nu[r] * nu[c] + c3 * va[r] * va[c];
+          Qs[3 * c + r] += c2 * nv[r] * nv[c] + c3 * vb[r] * vb[c];
+          Ws[3 * c + r] += c3 * va[r] * vb[c];
+        }
+    }
+    const auto& off = model_.block_offset[t];
+    int fk[3];
+    for (int k = 0; k < 3; ++k) {
+      fk[k] = free_index[e.v[k]];
+      if (fk[k] < 0) continue;
+      double* b = rhs + 3 * fk[k];
+      for (int r = 0; r < 3; ++r) b[r] += ru[k] * gu[r] + rv[k] * gv[r];
+    }
+    for (int k = 0; k < 3; ++k) {
+      if (fk[k] < 0) continue;
+      for (int l = k; l < 3; ++l) {
+        if (fk[l] < 0) continue;
+        const double c1 = ru[k] * ru[l], c2 = rv[k] * rv[l], c3 = ru[k] * rv[l], c4 = rv[k] * ru[l];
+        double blk[9];  // column-major
+        for (int c = 0; c < 3; ++c)
+          for (int r = 0; r < 3; ++r)
+            blk[3 * c + r] = c1 * Ps[3 * c + r] + c2 * Qs[3 * c + r] + c3 * Ws[3 * c + r] +
+                             c4 * Ws[3 * r + c];
+        double* dst = Aval + off[k * 3 + l];
+        const int sk = row_stride[fk[k]];
+        for (int r = 0; r < 3; ++r, dst += sk)
+          for (int c = 0; c < 3; ++c) dst[c] += blk[3 * c + r];
+        if (l != k) {
+          double* dt = Aval + off[l * 3 + k];
+          const int sl = row_stride[fk[l]];
+          for (int r = 0; r < 3; ++r, dt += sl)
+            for (int c = 0; c < 3; ++c) dt[c] += blk[3 * r + c];
+        }
+      }
+    }
+  }
+  return e_el;
+}
 
 void IntegratorConfig::validate() const {
   auto bad = [](const std::string& f, const std::string& why) {
@@ -69,55 +307,14 @@ bool Integrator::state_finite(const ClothState& s) const {
 }
 
 bool Integrator::assemble(const ClothState& s, double h, JacobianMode mode) {
-  const double a = cfg_.alpha, ah = a * h, aahh = a * a * h * h;
+  const double ah = cfg_.alpha * h;
   std::memset(A_.val.data(), 0, sizeof(double) * A_.val.size());
   rhs_.setZero();
-  EvalRequest req;
-  req.hessian = true;
-  req.blocks = false;  // the factored Jacobians are enough (see ElementEval)
-  req.mode = mode;
-  ElementEval ev;
-  double e_el = 0.0;
-  Mat3 Ps, Qs, Ws, blk;
-  const auto& els = model_.elements;
-  for (size_t t = 0; t < els.size(); ++t) {
-    const ElementRest& e = els[t];
-    const Vec3* x[3] = {&s.x[e.v[0]], &s.x[e.v[1]], &s.x[e.v[2]]};
-    const Vec3* v[3] = {&s.v[e.v[0]], &s.v[e.v[1]], &s.v[e.v[2]]};
-    evaluate_element(e, model_.material, x, viscous_ ? v : nullptr, req, ev);  // eqs. 3-7
-    e_el += ev.energy;
-    // H v per vertex from the factored form: sum_l H_kl v_l = ru_k (P Uv + W Vv) + rv_k (Q Vv + W^T Uv)
-    const Vec3 Uv = e.ru[0] * *v[0] + e.ru[1] * *v[1] + e.ru[2] * *v[2];
-    const Vec3 Vv = e.rv[0] * *v[0] + e.rv[1] * *v[1] + e.rv[2] * *v[2];
-    const Vec3 hu = ev.P * Uv + ev.W * Vv, hv = ev.Q * Vv + ev.W.transpose() * Uv;
-    // System blocks alpha^2 h^2 H_kl + alpha h C_kl share the factored form.
-    Ps = aahh * ev.P;
-    Qs = aahh * ev.Q;
-    Ws = aahh * ev.W;
-    if (viscous_) {
-      Ps += ah * ev.Pc;
-      Qs += ah * ev.Qc;
-      Ws += ah * ev.Wc;
-    }
-    const auto& off = model_.block_offset[t];
-    for (int k = 0; k < 3; ++k) {
-      const int fk = model_.free_index[e.v[k]];
-      if (fk < 0) continue;
-      // Right-hand side of eq. 9: h (F - alpha h H v); H v includes pinned neighbours, which
-      // is how their prescribed motion enters the solve.
-      rhs_.segment<3>(3 * fk) += h * (ev.f[k] - ah * (e.ru[k] * hu + e.rv[k] * hv));
-      const int stride = model_.row_stride[fk];
-      for (int l = 0; l < 3; ++l) {
-        const int o = off[k * 3 + l];
-        if (o < 0) continue;
-        combine_blocks(blk, e.ru[k] * e.ru[l], Ps, e.rv[k] * e.rv[l], Qs, e.ru[k] * e.rv[l], Ws,
-                       e.rv[k] * e.ru[l]);
-        double* dst = A_.val.data() + o;
-        for (int r = 0; r < 3; ++r, dst += stride)
-          for (int c = 0; c < 3; ++c) dst[c] += blk(r, c);
-      }
-    }
-  }
+  const bool spd = mode == JacobianMode::Spd;
+  const double e_el = viscous_ ? (spd ? assemble_elements<true, true>(s, h)
+                                      : assemble_elements<true, false>(s, h))
+                               : (spd ? assemble_elements<false, true>(s, h)
+                                      : assemble_elements<false, false>(s, h));
   // Lumped mass, air damping, gravity and external forces on free vertices.
   double ke = 0.0, eg = 0.0;
   const double cair = cfg_.air_damping;

@@ -74,12 +74,16 @@ class Integrator {
 
   /// The system matrix of eq. 9 at state s for step h (for tests and analysis).
   const SymCsr& system_matrix(const ClothState& s, double h, JacobianMode mode);
+  /// The right-hand side of eq. 9 from the last assembly (free-vertex order, 3 per vertex).
+  const Eigen::VectorXd& system_rhs() const { return rhs_; }
 
  private:
   enum class Attempt { Ok, Failed };
   Attempt advance(ClothState& s, double h, int depth);
   Attempt single_step(ClothState& s, double h);
   bool assemble(const ClothState& s, double h, JacobianMode mode);
+  template <bool kViscous, bool kSpd>
+  double assemble_elements(const ClothState& s, double h);  // returns the elastic energy
   bool state_finite(const ClothState& s) const;
 
   const ClothModel& model_;

@@ -34,6 +34,11 @@ class LinearSolver {
 struct PcgOptions {
   double tolerance = 1e-6;  ///< relative residual |r| / |b|
   int max_iterations = 500;
+  /// Keep the PCG's copy of the matrix in single precision (products still accumulate in
+  /// double). Halves the memory each iteration streams; the solve then meets `tolerance` for
+  /// a matrix within float rounding (relative 6e-8) of the assembled one, so use it only with
+  /// tolerances well above that (the scenes use 1e-4).
+  bool single_precision_matrix = false;
 };
 
 /// Preconditioned conjugate gradients on Eigen vectors, with a 3x3 block-Jacobi

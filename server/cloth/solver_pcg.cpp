@@ -1,4 +1,7 @@
 #include <Eigen/Dense>
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#endif
 #include <array>
 #include <cmath>
 #include <stdexcept>
@@ -20,105 +23,260 @@ const char* to_string(SolveStatus s) {
 
 namespace {
 
-using VecMap = Eigen::Map<Eigen::VectorXd>;
+// Block-sparse-row copy of a block3 SymCsr: each 3x3 block's 9 values contiguous (row-major),
+// one column offset per block. T = float halves the memory the matrix-vector product streams,
+// which is what bounds PCG on large meshes (the product reads the whole matrix every
+// iteration); products accumulate in double.
+template <class T>
+struct Bsr {
+  std::vector<int> rowptr;  // per block row: first block
+  std::vector<int> xoff;    // per block: scalar offset of its column triple in x
+  std::vector<int> diag;    // per block row: index of its diagonal block
+  std::vector<T> val;       // 9 per block
+
+  void build_pattern(const SymCsr& A) {
+    const int nb = A.n / 3;
+    rowptr.assign(nb + 1, 0);
+    xoff.clear();
+    diag.assign(nb, -1);
+    for (int br = 0; br < nb; ++br) {
+      const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
+      for (int k = 0; k < len; k += 3) {
+        if (A.col[o + k] == 3 * br) diag[br] = static_cast<int>(xoff.size());
+        xoff.push_back(A.col[o + k]);
+      }
+      rowptr[br + 1] = static_cast<int>(xoff.size());
+      if (diag[br] < 0) throw std::invalid_argument("pcg: diagonal block missing from the pattern");
+    }
+    val.assign(kBlock * xoff.size(), T(0));
+  }
+
+  // Copies the values of A (same pattern) in; one streaming pass. Blocks are stored
+  // column-major with each column padded to 4 lanes, so that y += B x is three 4-wide
+  // multiply-adds of a column by a broadcast x entry.
+  void load(const SymCsr& A) {
+    const int nb = static_cast<int>(diag.size());
+    const double* v = A.val.data();
+    T* dst = val.data();
+    for (int br = 0; br < nb; ++br) {
+      const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
+      const double* r0 = v + o;
+      const double* r1 = r0 + len;
+      const double* r2 = r1 + len;
+      for (int k = 0; k < len; k += 3, dst += kBlock) {
+        for (int c = 0; c < 3; ++c) {
+          dst[4 * c] = T(r0[k + c]);
+          dst[4 * c + 1] = T(r1[k + c]);
+          dst[4 * c + 2] = T(r2[k + c]);
+          dst[4 * c + 3] = T(0);
+        }
+      }
+    }
+  }
+
+  // y = A x, and returns x . y (the PCG step needs p . Ap; fused to save a pass). y must have
+  // one padding entry past its end (the last block row writes 4 lanes).
+  double multiply_dot(const double* x, double* y) const {
+    const int nb = static_cast<int>(diag.size());
+    const T* b = val.data();
+#if defined(__AVX2__) && defined(__FMA__)
+    __m256d dot = _mm256_setzero_pd();
+    for (int br = 0; br < nb; ++br) {
+      // Two accumulators: each block's product is an independent chain, only the sums chain.
+      __m256d acc0 = _mm256_setzero_pd(), acc1 = _mm256_setzero_pd();
+      const int kend = rowptr[br + 1];
+      int k = rowptr[br];
+      for (; k + 1 < kend; k += 2, b += 2 * kBlock) {
+        const double* xa = x + xoff[k];
+        const double* xb = x + xoff[k + 1];
+        __m256d ta = _mm256_mul_pd(lanes(b), _mm256_broadcast_sd(xa));
+        __m256d tb = _mm256_mul_pd(lanes(b + kBlock), _mm256_broadcast_sd(xb));
+        ta = _mm256_fmadd_pd(lanes(b + 4), _mm256_broadcast_sd(xa + 1), ta);
+        tb = _mm256_fmadd_pd(lanes(b + kBlock + 4), _mm256_broadcast_sd(xb + 1), tb);
+        ta = _mm256_fmadd_pd(lanes(b + 8), _mm256_broadcast_sd(xa + 2), ta);
+        tb = _mm256_fmadd_pd(lanes(b + kBlock + 8), _mm256_broadcast_sd(xb + 2), tb);
+        acc0 = _mm256_add_pd(acc0, ta);
+        acc1 = _mm256_add_pd(acc1, tb);
+      }
+      if (k < kend) {
+        const double* xa = x + xoff[k];
+        __m256d ta = _mm256_mul_pd(lanes(b), _mm256_broadcast_sd(xa));
+        ta = _mm256_fmadd_pd(lanes(b + 4), _mm256_broadcast_sd(xa + 1), ta);
+        ta = _mm256_fmadd_pd(lanes(b + 8), _mm256_broadcast_sd(xa + 2), ta);
+        acc0 = _mm256_add_pd(acc0, ta);
+        b += kBlock;
+      }
+      const __m256d yv = _mm256_add_pd(acc0, acc1);  // lane 3 is 0 (padding)
+      _mm256_storeu_pd(y + 3 * br, yv);
+      // x's lane 3 belongs to the next row; the padded lane of yv is 0, so it adds nothing.
+      dot = _mm256_fmadd_pd(_mm256_loadu_pd(x + 3 * br), yv, dot);
+    }
+    alignas(32) double d[4];
+    _mm256_store_pd(d, dot);
+    return (d[0] + d[1]) + (d[2] + d[3]);
+#else
+    double dot = 0.0;
+    for (int br = 0; br < nb; ++br) {
+      double s0 = 0.0, s1 = 0.0, s2 = 0.0;
+      for (int k = rowptr[br]; k < rowptr[br + 1]; ++k, b += kBlock) {
+        const double* xc = x + xoff[k];
+        for (int c = 0; c < 3; ++c) {
+          s0 += double(b[4 * c]) * xc[c];
+          s1 += double(b[4 * c + 1]) * xc[c];
+          s2 += double(b[4 * c + 2]) * xc[c];
+        }
+      }
+      y[3 * br] = s0;
+      y[3 * br + 1] = s1;
+      y[3 * br + 2] = s2;
+      dot += x[3 * br] * s0 + x[3 * br + 1] * s1 + x[3 * br + 2] * s2;
+    }
+    return dot;
+#endif
+  }
+
+  static constexpr int kBlock = 12;  // 3 columns x 4 lanes
+
+ private:
+#if defined(__AVX2__) && defined(__FMA__)
+  static __m256d lanes(const double* p) { return _mm256_loadu_pd(p); }
+  static __m256d lanes(const float* p) { return _mm256_cvtps_pd(_mm_loadu_ps(p)); }
+#endif
+};
 
 class PcgSolver final : public LinearSolver {
  public:
   explicit PcgSolver(const PcgOptions& o) : opt_(o) {
-    if (!(o.tolerance > 0.0) || o.max_iterations < 1)
+    if (!(o.tolerance > 0.0) || !std::isfinite(o.tolerance) || o.max_iterations < 1)
       throw std::invalid_argument("pcg: tolerance must be > 0 and max_iterations >= 1");
   }
   const char* name() const override { return "pcg"; }
 
   void analyze(const SymCsr& A) override {
     if (A.n % 3 != 0) throw std::invalid_argument("pcg: matrix size must be a multiple of 3");
+    if (!A.block3) throw std::invalid_argument("pcg: the matrix must have 3x3 block structure");
     n_ = A.n;
-    r_.setZero(n_);
-    z_.setZero(n_);
-    p_.setZero(n_);
-    q_.setZero(n_);
-    const int nb = n_ / 3;
-    diag_.resize(nb);
-    inv_.resize(nb);
-    for (int b = 0; b < nb; ++b) {
-      for (int a = 0; a < 3; ++a) {
-        const int o = A.find(3 * b + a, 3 * b);
-        if (o < 0) throw std::invalid_argument("pcg: diagonal block missing from the pattern");
-        diag_[b][a] = o;
-      }
-    }
+    // One padding entry: the vectorized product reads and writes 4 lanes per block row.
+    r_.assign(n_ + 1, 0.0);
+    z_.assign(n_ + 1, 0.0);
+    p_.assign(n_ + 1, 0.0);
+    q_.assign(n_ + 1, 0.0);
+    x0_.assign(n_ + 1, 0.0);
+    inv_.assign(9 * (n_ / 3), 0.0);
+    if (opt_.single_precision_matrix)
+      mf_.build_pattern(A);
+    else
+      md_.build_pattern(A);
   }
 
-  SolveStatus solve(const SymCsr& A, const double* bptr, double* xptr) override {
-    Eigen::Map<const Eigen::VectorXd> b(bptr, n_);
-    VecMap x(xptr, n_);
-    iterations_ = 0;
-    residual_ = 0.0;
-    // Block-Jacobi preconditioner: inverse of each 3x3 diagonal block.
-    const double* v = A.val.data();
-    for (size_t k = 0; k < inv_.size(); ++k) {
-      Eigen::Matrix3d D;
-      for (int a = 0; a < 3; ++a)
-        for (int c = 0; c < 3; ++c) D(a, c) = v[diag_[k][a] + c];
-      const double det = D.determinant();
-      if (!(det > 0.0) || !std::isfinite(det)) return SolveStatus::NotPositiveDefinite;
-      inv_[k] = D.inverse();
-    }
-    const double bnorm = b.norm();
-    if (!std::isfinite(bnorm)) return SolveStatus::NumericalError;
-    if (bnorm == 0.0) {
-      x.setZero();
-      return SolveStatus::Ok;
-    }
-    if (!x.allFinite()) x.setZero();
-    A.multiply(xptr, q_.data());
-    r_ = b - q_;
-    const double goal = opt_.tolerance * bnorm;
-    double rnorm = r_.norm();
-    if (rnorm <= goal) {
-      residual_ = rnorm / bnorm;
-      return SolveStatus::Ok;
-    }
-    precondition(r_, z_);
-    p_ = z_;
-    double rz = r_.dot(z_);
-    for (int it = 1; it <= opt_.max_iterations; ++it) {
-      A.multiply(p_.data(), q_.data());
-      const double pq = p_.dot(q_);
-      if (!(pq > 0.0)) {
-        iterations_ = it;
-        return std::isfinite(pq) ? SolveStatus::NotPositiveDefinite : SolveStatus::NumericalError;
-      }
-      const double alpha = rz / pq;
-      x.noalias() += alpha * p_;
-      r_.noalias() -= alpha * q_;
-      rnorm = r_.norm();
-      iterations_ = it;
-      if (!std::isfinite(rnorm)) return SolveStatus::NumericalError;
-      if (rnorm <= goal) {
-        residual_ = rnorm / bnorm;
-        return SolveStatus::Ok;
-      }
-      precondition(r_, z_);
-      const double rz_new = r_.dot(z_);
-      p_ = z_ + (rz_new / rz) * p_;
-      rz = rz_new;
-    }
-    residual_ = rnorm / bnorm;
-    return SolveStatus::NotConverged;
+  SolveStatus solve(const SymCsr& A, const double* b, double* x) override {
+    return opt_.single_precision_matrix ? run(mf_, A, b, x) : run(md_, A, b, x);
   }
 
  private:
-  void precondition(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
-    for (size_t k = 0; k < inv_.size(); ++k)
-      z.segment<3>(3 * k).noalias() = inv_[k] * r.segment<3>(3 * k);
+  template <class T>
+  SolveStatus run(Bsr<T>& M, const SymCsr& A, const double* b, double* x) {
+    iterations_ = 0;
+    residual_ = 0.0;
+    const int n = n_, nb = n_ / 3;
+    M.load(A);
+    // Block-Jacobi preconditioner: the inverse of each 3x3 diagonal block (from the double
+    // values, by cofactors).
+    const double* v = A.val.data();
+    for (int br = 0; br < nb; ++br) {
+      const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
+      const int d = 3 * (M.diag[br] - M.rowptr[br]);  // column position of the diagonal block
+      const double* r0 = v + o + d;
+      const double a00 = r0[0], a01 = r0[1], a02 = r0[2];
+      const double a10 = r0[len], a11 = r0[len + 1], a12 = r0[len + 2];
+      const double a20 = r0[2 * len], a21 = r0[2 * len + 1], a22 = r0[2 * len + 2];
+      const double c00 = a11 * a22 - a12 * a21, c01 = a02 * a21 - a01 * a22, c02 = a01 * a12 - a02 * a11;
+      const double det = a00 * c00 + a10 * c01 + a20 * c02;
+      if (!(det > 0.0) || !std::isfinite(det) || !(a00 > 0.0)) return SolveStatus::NotPositiveDefinite;
+      const double id = 1.0 / det;
+      double* m = inv_.data() + 9 * br;
+      m[0] = c00 * id;
+      m[1] = c01 * id;
+      m[2] = c02 * id;
+      m[3] = (a12 * a20 - a10 * a22) * id;
+      m[4] = (a00 * a22 - a02 * a20) * id;
+      m[5] = (a02 * a10 - a00 * a12) * id;
+      m[6] = (a10 * a21 - a11 * a20) * id;
+      m[7] = (a01 * a20 - a00 * a21) * id;
+      m[8] = (a00 * a11 - a01 * a10) * id;
+    }
+    double bn2 = 0.0;
+    for (int i = 0; i < n; ++i) bn2 += b[i] * b[i];
+    if (!std::isfinite(bn2)) return SolveStatus::NumericalError;
+    if (bn2 == 0.0) {
+      std::fill(x, x + n, 0.0);
+      return SolveStatus::Ok;
+    }
+    const double bnorm = std::sqrt(bn2);
+    bool finite = true;
+    for (int i = 0; i < n; ++i) finite = finite && std::isfinite(x[i]);
+    if (!finite) std::fill(x, x + n, 0.0);
+    double* r = r_.data();
+    double* z = z_.data();
+    double* p = p_.data();
+    double* q = q_.data();
+    std::copy(x, x + n, x0_.data());  // padded copy of the guess for the product
+    M.multiply_dot(x0_.data(), q);
+    for (int i = 0; i < n; ++i) r[i] = b[i] - q[i];
+    const double goal2 = opt_.tolerance * opt_.tolerance * bn2;
+    // z = M^-1 r and r . z, r . r in one pass.
+    auto precondition = [&](double& rr) {
+      double rz = 0.0;
+      rr = 0.0;
+      for (int br = 0; br < nb; ++br) {
+        const double* m = inv_.data() + 9 * br;
+        const double r0 = r[3 * br], r1 = r[3 * br + 1], r2 = r[3 * br + 2];
+        const double z0 = m[0] * r0 + m[1] * r1 + m[2] * r2;
+        const double z1 = m[3] * r0 + m[4] * r1 + m[5] * r2;
+        const double z2 = m[6] * r0 + m[7] * r1 + m[8] * r2;
+        z[3 * br] = z0;
+        z[3 * br + 1] = z1;
+        z[3 * br + 2] = z2;
+        rz += r0 * z0 + r1 * z1 + r2 * z2;
+        rr += r0 * r0 + r1 * r1 + r2 * r2;
+      }
+      return rz;
+    };
+    double rr;
+    double rz = precondition(rr);
+    if (rr <= goal2) {
+      residual_ = std::sqrt(rr) / bnorm;
+      return SolveStatus::Ok;
+    }
+    std::copy(z, z + n, p);
+    for (int it = 1; it <= opt_.max_iterations; ++it) {
+      const double pq = M.multiply_dot(p, q);
+      iterations_ = it;
+      if (!(pq > 0.0)) return std::isfinite(pq) ? SolveStatus::NotPositiveDefinite : SolveStatus::NumericalError;
+      const double alpha = rz / pq;
+      for (int i = 0; i < n; ++i) {
+        x[i] += alpha * p[i];
+        r[i] -= alpha * q[i];
+      }
+      const double rz_new = precondition(rr);
+      if (!std::isfinite(rr)) return SolveStatus::NumericalError;
+      if (rr <= goal2) {
+        residual_ = std::sqrt(rr) / bnorm;
+        return SolveStatus::Ok;
+      }
+      const double beta = rz_new / rz;
+      for (int i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
+      rz = rz_new;
+    }
+    residual_ = std::sqrt(rr) / bnorm;
+    return SolveStatus::NotConverged;
   }
 
   PcgOptions opt_;
   int n_ = 0;
-  Eigen::VectorXd r_, z_, p_, q_;
-  std::vector<std::array<int, 3>> diag_;
-  std::vector<Eigen::Matrix3d> inv_;
+  std::vector<double> r_, z_, p_, q_, x0_, inv_;
+  Bsr<double> md_;
+  Bsr<float> mf_;
 };
 
 }  // namespace

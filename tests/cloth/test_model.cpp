@@ -32,7 +32,9 @@ TEST(Model, LumpedMassesAndPattern) {
   for (int r = 0; r < P.n; ++r) {
     EXPECT_GE(P.find(r, r), 0);
     for (int k = P.rowptr[r]; k < P.rowptr[r + 1]; ++k) {
-      if (k > P.rowptr[r]) EXPECT_LT(P.col[k - 1], P.col[k]);
+      if (k > P.rowptr[r]) {
+        EXPECT_LT(P.col[k - 1], P.col[k]);
+      }
       EXPECT_GE(P.find(P.col[k], r), 0);
     }
   }
