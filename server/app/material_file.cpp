@@ -41,6 +41,7 @@ cloth::StrainStressCurve parse_curve(const TomlFile& f, const toml::table& root,
   c.compression_scale = f.number(*t, key, "compression_scale", 1.0);
   const double max_strain = f.number(*t, key, "max_strain", 0.3);
   if (!(max_strain > 0.0)) f.fail(t->get("max_strain"), key + ".max_strain", "must be > 0");
+  c.max_strain = max_strain;
   try {
     c.validate("", max_strain);
   } catch (const std::invalid_argument& e) {

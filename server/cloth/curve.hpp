@@ -24,6 +24,7 @@ struct StrainStressCurve {
   bool odd = false;                       ///< shear curves are odd functions of strain
   double compression_scale = 1.0;         ///< slope factor for eps < 0 (tensile curves)
   double viscosity = 0.0;                 ///< linear viscosity eta, sigma_v = eta * eps' (N s/m)
+  double max_strain = 0.3;                ///< largest strain the law was fitted/validated for
 
   /// Stress sigma(eps) in N/m.
   double stress(double eps) const;
