@@ -1,0 +1,120 @@
+// The haptic device hardware abstraction. The haptic loop depends on this interface only.
+//
+// Lifecycle (ros2_control style):  configure() -> activate() -> read()/write() at the loop rate
+// -> deactivate(). configure/activate/deactivate run off the real-time path: they may allocate
+// and return an error message. read() and write() run on the real-time path: they return a
+// status, never throw, never allocate and never block.
+//
+// Device frame: right-handed, metres, origin at the workspace centre as the driver defines it;
+// the server maps it to the scene with DeviceOptions::frame_offset/scale. Forces are in newtons,
+// in the same frame, applied to the user's fingertip.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include <Eigen/Core>
+
+namespace hapticloth::devices {
+
+using Vec3 = Eigen::Vector3d;
+
+/// Most fingers a device may have (fixed storage: no allocation on the real-time path).
+inline constexpr int kMaxFingers = 5;
+
+struct Box {
+  Vec3 min{-0.1, -0.1, -0.1};
+  Vec3 max{0.1, 0.1, 0.1};
+  bool contains(const Vec3& p) const {
+    return (p.array() >= min.array()).all() && (p.array() <= max.array()).all();
+  }
+};
+
+struct DeviceInfo {
+  std::string name;
+  int fingers = 2;                 ///< two or more
+  Box workspace;                   ///< m, device frame
+  double max_force = 5.0;          ///< N per finger
+  double max_stiffness = 2000.0;   ///< N/m: stiffest spring the device renders stably
+  double nominal_rate = 1000.0;    ///< Hz
+};
+
+struct FingerState {
+  Vec3 position = Vec3::Zero();  ///< m, device frame
+  Vec3 velocity = Vec3::Zero();  ///< m/s, device frame
+  std::uint32_t buttons = 0;     ///< bit mask
+};
+
+/// One sample of the whole device.
+struct DeviceState {
+  double device_time = 0.0;    ///< s, the device's own clock (for logs)
+  double received_time = -1.0; ///< s, loop clock when this sample arrived; < 0: never
+  std::uint64_t sequence = 0;  ///< increases with every new sample
+  std::array<FingerState, kMaxFingers> finger{};
+};
+
+struct DeviceCommand {
+  std::array<Vec3, kMaxFingers> force{};  ///< N, device frame, on the user's fingertip
+  std::uint32_t flags = 0;                ///< CommandFlags
+  DeviceCommand() {
+    for (auto& f : force) f.setZero();
+  }
+};
+
+enum CommandFlags : std::uint32_t {
+  kFlagStale = 1u << 0,    ///< the server considers the device state stale (forces ramped out)
+  kFlagClamped = 1u << 1,  ///< a force was clamped to the device's limit
+  kFlagFault = 1u << 2,    ///< a non-finite force was replaced by zero
+};
+
+enum class Status : std::uint8_t {
+  Ok,       ///< new state read / command written
+  NoData,   ///< nothing new since the last read (the last state stays valid until stale)
+  Error,    ///< the device failed; the loop deactivates it
+};
+const char* to_string(Status s);
+
+enum class Lifecycle : std::uint8_t { Unconfigured, Inactive, Active, Failed };
+const char* to_string(Lifecycle s);
+
+/// Counters every driver keeps (monotonic, read by the loop's statistics).
+struct DeviceCounters {
+  std::uint64_t reads = 0, samples = 0, writes = 0;
+  std::uint64_t dropped_malformed = 0;   ///< wrong size, magic or checksum, garbage
+  std::uint64_t dropped_version = 0;     ///< protocol version not understood
+  std::uint64_t dropped_duplicate = 0;   ///< a sequence number already seen
+  std::uint64_t dropped_reordered = 0;   ///< older than the newest sample already taken
+  std::uint64_t dropped_out_of_range = 0;  ///< non-finite or outside the workspace
+  std::uint64_t send_errors = 0;
+  std::uint64_t dropped_total() const {
+    return dropped_malformed + dropped_version + dropped_duplicate + dropped_reordered +
+           dropped_out_of_range;
+  }
+};
+
+class Device {
+ public:
+  virtual ~Device() = default;
+
+  /// Static description; valid after configure().
+  virtual const DeviceInfo& info() const = 0;
+
+  /// Off the real-time path. Opens files, sockets; returns an empty string on success, else
+  /// the error (and the device stays Unconfigured).
+  virtual std::string configure() = 0;
+  /// Off the real-time path. Starts streaming. Empty string on success.
+  virtual std::string activate() = 0;
+  /// Off the real-time path. Stops streaming, sends zero forces where it can, flushes logs.
+  virtual void deactivate() = 0;
+
+  /// Real-time path. `now` is the loop clock in seconds. Fills `state` with the newest sample
+  /// (Ok) or leaves it unchanged (NoData).
+  virtual Status read(double now, DeviceState& state) noexcept = 0;
+  /// Real-time path. The command has already passed the SafetyGate.
+  virtual Status write(double now, const DeviceCommand& cmd) noexcept = 0;
+
+  virtual const DeviceCounters& counters() const = 0;
+};
+
+}  // namespace hapticloth::devices

@@ -1,0 +1,33 @@
+// Configuration of a device driver, from the command line (--device ...) and the scene's
+// [device] table. One struct for every driver; each driver reads the fields it needs and
+// rejects a configuration it cannot use with a message naming the field.
+#pragma once
+
+#include <string>
+
+#include "hal/device.hpp"
+
+namespace hapticloth::devices {
+
+inline constexpr int kDefaultUdpPort = 47800;
+
+struct DeviceOptions {
+  std::string driver = "mock";        ///< registered driver name: mock, udp, replay
+  int fingers = 2;
+  Box workspace;                      ///< m, device frame
+  double max_force = 5.0;             ///< N per finger
+  double max_stiffness = 2000.0;      ///< N/m
+  double rate = 1000.0;               ///< Hz, nominal
+
+  // mock
+  std::string script;                 ///< trajectory file (.toml or .csv); empty: built-in demo
+  std::string record_path;            ///< device log CSV written at deactivate (mock, udp)
+
+  // udp
+  std::string udp_bind = "127.0.0.1:" + std::to_string(kDefaultUdpPort);  ///< HOST:PORT
+
+  // replay
+  std::string replay_path;            ///< device log CSV to play back
+};
+
+}  // namespace hapticloth::devices

@@ -1,0 +1,80 @@
+#include "hal/safety_gate.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace hapticloth::devices {
+
+SafetyGate::SafetyGate(const DeviceInfo& info, const GateConfig& cfg) : fingers_(info.fingers) {
+  auto bad = [](const std::string& f) {
+    throw std::invalid_argument("safety gate: " + f + " must be finite and > 0");
+  };
+  if (!(info.max_force > 0.0) || !std::isfinite(info.max_force)) bad("device max_force");
+  if (!(cfg.max_force >= 0.0) || !std::isfinite(cfg.max_force)) bad("max_force");
+  if (!(cfg.slew_rate > 0.0) || !std::isfinite(cfg.slew_rate)) bad("slew_rate");
+  if (!(cfg.watchdog > 0.0) || !std::isfinite(cfg.watchdog)) bad("watchdog");
+  if (!(cfg.ramp_time > 0.0) || !std::isfinite(cfg.ramp_time)) bad("ramp_time");
+  if (!(info.nominal_rate > 0.0)) bad("device nominal_rate");
+  if (fingers_ < 1 || fingers_ > kMaxFingers) throw std::invalid_argument("safety gate: 1 to 5 fingers");
+  max_force_ = cfg.max_force > 0.0 ? std::min(cfg.max_force, info.max_force) : info.max_force;
+  slew_ = cfg.slew_rate;
+  watchdog_ = cfg.watchdog;
+  ramp_ = cfg.ramp_time;
+  nominal_dt_ = 1.0 / info.nominal_rate;
+  reset();
+}
+
+void SafetyGate::reset() {
+  last_now_ = -1.0;
+  gain_ = 0.0;
+  stale_ = true;
+  for (auto& p : prev_) p.setZero();
+}
+
+void SafetyGate::apply(double now, double state_time, const DeviceCommand& in,
+                       DeviceCommand& out) noexcept {
+  ++c_.commands;
+  double dt = nominal_dt_;
+  if (last_now_ >= 0.0 && std::isfinite(now)) dt = std::clamp(now - last_now_, 0.0, 0.1);
+  last_now_ = now;
+
+  // Watchdog.
+  const bool stale = !(state_time >= 0.0) || !std::isfinite(now) || now - state_time > watchdog_;
+  if (stale && !stale_) ++c_.stale_events;
+  stale_ = stale;
+  if (stale) ++c_.stale_ticks;
+  const double dg = dt / ramp_;
+  gain_ = stale ? std::max(0.0, gain_ - dg) : std::min(1.0, gain_ + dg);
+
+  std::uint32_t flags = stale ? kFlagStale : 0u;
+  const double max_step = slew_ * dt;
+  for (int i = 0; i < kMaxFingers; ++i) {
+    Vec3 f = (i < fingers_) ? in.force[i] : Vec3::Zero();
+    if (!f.allFinite()) {
+      f.setZero();
+      flags |= kFlagFault;
+      ++c_.non_finite;
+    }
+    const double n = f.norm();
+    if (n > max_force_) {
+      f *= max_force_ / n;
+      flags |= kFlagClamped;
+      ++c_.clamped;
+    }
+    f *= gain_;
+    // Slew limit per component, so a step in force becomes a ramp.
+    const Vec3 d = f - prev_[i];
+    const double dm = d.cwiseAbs().maxCoeff();
+    if (dm > max_step) {
+      f = prev_[i] + d * (max_step / dm);
+      ++c_.slew_limited;
+    }
+    prev_[i] = f;
+    out.force[i] = f;
+  }
+  out.flags = flags | (in.flags & ~(kFlagStale | kFlagClamped | kFlagFault));
+}
+
+}  // namespace hapticloth::devices

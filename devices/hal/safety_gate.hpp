@@ -1,0 +1,57 @@
+// The one gate every force passes before any driver sees it (libfranka style): non-finite ->
+// zero and a counted event; clamp to the device's maximum force; slew-rate limit; watchdog:
+// when the device state is older than the watchdog time the forces ramp to zero and the device
+// is reported stale, and they ramp back when fresh state returns. Real-time safe.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "hal/device.hpp"
+
+namespace hapticloth::devices {
+
+struct GateConfig {
+  double max_force = 0.0;      ///< N per finger; 0 = the device's max_force (never above it)
+  double slew_rate = 1000.0;   ///< N/s: largest change of a force component per second
+  double watchdog = 0.005;     ///< s: state older than this is stale
+  double ramp_time = 0.02;     ///< s: forces fade out (stale) and back in (fresh) over this
+};
+
+struct GateCounters {
+  std::uint64_t commands = 0;
+  std::uint64_t non_finite = 0;    ///< forces replaced by zero
+  std::uint64_t clamped = 0;       ///< forces clamped to max_force
+  std::uint64_t slew_limited = 0;  ///< forces whose change was limited
+  std::uint64_t stale_events = 0;  ///< fresh -> stale transitions
+  std::uint64_t stale_ticks = 0;   ///< commands issued while stale
+};
+
+class SafetyGate {
+ public:
+  /// Throws std::invalid_argument for a configuration that is not finite and positive.
+  SafetyGate(const DeviceInfo& info, const GateConfig& cfg = {});
+
+  /// `now`: loop clock (s); `state_time`: loop time the newest device state arrived (< 0:
+  /// never). Writes the gated command to `out` (flags set: stale, clamped, fault).
+  void apply(double now, double state_time, const DeviceCommand& in, DeviceCommand& out) noexcept;
+
+  bool stale() const { return stale_; }
+  /// Fade factor in [0, 1] applied to the forces (0 while fully stale).
+  double gain() const { return gain_; }
+  const GateCounters& counters() const { return c_; }
+  double max_force() const { return max_force_; }
+  /// Back to the initial state: stale, zero force (for reactivation).
+  void reset();
+
+ private:
+  int fingers_;
+  double max_force_, slew_, watchdog_, ramp_, nominal_dt_;
+  double last_now_ = -1.0;
+  double gain_ = 0.0;
+  bool stale_ = true;
+  std::array<Vec3, kMaxFingers> prev_{};
+  GateCounters c_;
+};
+
+}  // namespace hapticloth::devices

@@ -1,0 +1,80 @@
+#include "mock/mock_device.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace hapticloth::devices {
+
+namespace {
+DeviceInfo info_from(const DeviceOptions& o, const char* name) {
+  DeviceInfo i;
+  i.name = name;
+  i.fingers = o.fingers;
+  i.workspace = o.workspace;
+  i.max_force = o.max_force;
+  i.max_stiffness = o.max_stiffness;
+  i.nominal_rate = o.rate;
+  return i;
+}
+}  // namespace
+
+MockDevice::MockDevice(const DeviceOptions& opt) : opt_(opt), info_(info_from(opt, "mock")) {}
+
+MockDevice::MockDevice(const DeviceOptions& opt, Trajectory tr)
+    : opt_(opt), info_(info_from(opt, "mock")), tr_(std::move(tr)), have_tr_(true) {}
+
+std::string MockDevice::configure() {
+  if (opt_.fingers < 2 || opt_.fingers > kMaxFingers) return "mock: fingers must be 2 to 5";
+  try {
+    if (!have_tr_) {
+      tr_ = opt_.script.empty() ? demo_trajectory(opt_.fingers)
+                                : load_trajectory(opt_.script, opt_.fingers);
+      have_tr_ = true;
+    }
+    if (tr_.fingers() != opt_.fingers) return "mock: the trajectory has a different number of fingers";
+    tr_.check_inside(opt_.workspace, opt_.script.empty() ? "mock trajectory" : opt_.script);
+  } catch (const std::exception& e) {
+    return std::string("mock: ") + e.what();
+  }
+  return "";
+}
+
+std::string MockDevice::activate() {
+  t0_ = -1.0;
+  last_ = DeviceState{};
+  // Room for the whole script plus a minute, at the nominal rate (recording never allocates).
+  const double seconds = tr_.duration() + 60.0;
+  log_.reserve(opt_.record_path.empty() ? 0 : static_cast<size_t>(seconds * info_.nominal_rate) * info_.fingers);
+  return "";
+}
+
+void MockDevice::deactivate() {
+  if (!opt_.record_path.empty()) log_.write_csv(opt_.record_path);
+}
+
+Status MockDevice::read(double now, DeviceState& state) noexcept {
+  ++counters_.reads;
+  if (!std::isfinite(now)) return Status::Error;
+  if (t0_ < 0.0) t0_ = now;
+  const double t = now - t0_;
+  for (int f = 0; f < info_.fingers; ++f)
+    tr_.evaluate(f, t, last_.finger[f].position, last_.finger[f].velocity);
+  last_.device_time = t;
+  last_.received_time = now;
+  ++last_.sequence;
+  ++counters_.samples;
+  state = last_;
+  return Status::Ok;
+}
+
+Status MockDevice::write(double now, const DeviceCommand& cmd) noexcept {
+  ++counters_.writes;
+  if (!opt_.record_path.empty()) log_.record(script_time(now), info_.fingers, last_, cmd);
+  return Status::Ok;
+}
+
+std::unique_ptr<Device> make_mock_device(const DeviceOptions& opt) {
+  return std::make_unique<MockDevice>(opt);
+}
+
+}  // namespace hapticloth::devices

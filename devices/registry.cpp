@@ -1,0 +1,44 @@
+#include "registry.hpp"
+
+#include <map>
+#include <stdexcept>
+
+#include "mock/mock_device.hpp"
+#include "replay/replay_device.hpp"
+#ifdef HAPTICLOTH_HAVE_UDP
+#include "udp/udp_device.hpp"
+#endif
+
+namespace hapticloth::devices {
+
+namespace {
+const std::map<std::string, DeviceFactory>& registry() {
+  static const std::map<std::string, DeviceFactory> r = {
+      {"mock", make_mock_device},
+      {"replay", make_replay_device},
+#ifdef HAPTICLOTH_HAVE_UDP
+      {"udp", make_udp_device},
+#endif
+  };
+  return r;
+}
+}  // namespace
+
+std::vector<std::string> device_names() {
+  std::vector<std::string> n;
+  for (const auto& [k, v] : registry()) n.push_back(k);
+  return n;
+}
+
+std::unique_ptr<Device> make_device(const DeviceOptions& opt) {
+  const auto& r = registry();
+  const auto it = r.find(opt.driver);
+  if (it == r.end()) {
+    std::string known;
+    for (const auto& [k, v] : r) known += (known.empty() ? "" : ", ") + k;
+    throw std::invalid_argument("unknown device '" + opt.driver + "' (" + known + ")");
+  }
+  return it->second(opt);
+}
+
+}  // namespace hapticloth::devices

@@ -1,0 +1,221 @@
+// The safety gate every force passes (devices/hal/safety_gate) and the device lifecycle
+// (devices/hal/handle).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "hal/handle.hpp"
+#include "hal/safety_gate.hpp"
+#include "support/alloc_counter.hpp"
+
+using namespace hapticloth::devices;
+
+namespace {
+
+DeviceInfo two_fingers(double max_force = 4.0) {
+  DeviceInfo i;
+  i.name = "test";
+  i.fingers = 2;
+  i.max_force = max_force;
+  return i;
+}
+
+// Runs the gate at 1 kHz with fresh state for n ticks from t, returning the last output.
+DeviceCommand run(SafetyGate& g, double& t, int n, const DeviceCommand& in, bool fresh = true) {
+  DeviceCommand out;
+  for (int k = 0; k < n; ++k) {
+    t += 0.001;
+    g.apply(t, fresh ? t : -1.0, in, out);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(SafetyGate, NonFiniteForceBecomesZeroAndIsCounted) {
+  SafetyGate g(two_fingers());
+  double t = 0.0;
+  DeviceCommand in;
+  in.force[0] = Vec3(1, 0, 0);
+  in.force[1] = Vec3(0.5, 0, 0);
+  run(g, t, 100, in);  // ramped in
+  in.force[0] = Vec3(std::numeric_limits<double>::quiet_NaN(), 0, 0);
+  DeviceCommand out;
+  t += 0.001;
+  g.apply(t, t, in, out);
+  EXPECT_TRUE(out.force[0].allFinite());
+  EXPECT_TRUE(out.flags & kFlagFault);
+  EXPECT_EQ(g.counters().non_finite, 1u);
+  // The NaN finger's force heads to zero at the slew limit; the other finger is untouched.
+  EXPECT_LT(out.force[0].x(), 1.0);
+  EXPECT_NEAR(out.force[1].x(), 0.5, 1e-12);
+  out = run(g, t, 10, in);
+  EXPECT_EQ(out.force[0], Vec3::Zero());
+  in.force[1] = Vec3(0, std::numeric_limits<double>::infinity(), 0);
+  out = run(g, t, 10, in);
+  EXPECT_TRUE(out.force[1].allFinite());
+}
+
+TEST(SafetyGate, ClampsToTheDeviceMaximum) {
+  SafetyGate g(two_fingers(4.0));
+  double t = 0.0;
+  DeviceCommand in;
+  in.force[0] = Vec3(30, 40, 0);  // 50 N
+  const DeviceCommand out = run(g, t, 200, in);
+  EXPECT_NEAR(out.force[0].norm(), 4.0, 1e-12);
+  EXPECT_NEAR(out.force[0].x() / out.force[0].y(), 0.75, 1e-12);  // direction kept
+  EXPECT_TRUE(out.flags & kFlagClamped);
+  EXPECT_GT(g.counters().clamped, 0u);
+  // A configured limit below the device's applies; one above it does not.
+  GateConfig c;
+  c.max_force = 2.0;
+  EXPECT_DOUBLE_EQ(SafetyGate(two_fingers(4.0), c).max_force(), 2.0);
+  c.max_force = 10.0;
+  EXPECT_DOUBLE_EQ(SafetyGate(two_fingers(4.0), c).max_force(), 4.0);
+}
+
+TEST(SafetyGate, SlewRateLimitsASteps) {
+  GateConfig c;
+  c.slew_rate = 500.0;  // N/s: 0.5 N per 1 ms tick
+  c.ramp_time = 1e-6;   // no fade: isolate the slew limit
+  SafetyGate g(two_fingers(), c);
+  double t = 0.0;
+  DeviceCommand zero, step;
+  run(g, t, 5, zero);
+  step.force[0] = Vec3(0, 0, 3.0);
+  DeviceCommand out;
+  double prev = 0.0;
+  for (int k = 1; k <= 10; ++k) {
+    t += 0.001;
+    g.apply(t, t, step, out);
+    EXPECT_LE(out.force[0].z() - prev, 0.5 + 1e-12);
+    prev = out.force[0].z();
+  }
+  EXPECT_NEAR(prev, 3.0, 1e-12);  // reached after 6 ticks
+  EXPECT_GE(g.counters().slew_limited, 5u);
+}
+
+TEST(SafetyGate, StaleAfterWatchdogRampsToZeroAndRecoversSmoothly) {
+  GateConfig c;
+  c.watchdog = 0.005;
+  c.ramp_time = 0.02;
+  SafetyGate g(two_fingers(), c);
+  DeviceCommand in, out;
+  in.force[0] = Vec3(2, 0, 0);
+  double t = 0.0;
+  // Fresh state every tick: forces fade in over ramp_time.
+  out = run(g, t, 100, in);
+  EXPECT_FALSE(g.stale());
+  EXPECT_NEAR(out.force[0].x(), 2.0, 1e-12);
+  // State stops arriving at t_last: 5 ms later the gate is stale and the force ramps to zero.
+  const double t_last = t;
+  double max_jump = 0.0, prev = out.force[0].x();
+  int stale_at = -1;
+  for (int k = 1; k <= 60; ++k) {
+    t += 0.001;
+    g.apply(t, t_last, in, out);
+    if (g.stale() && stale_at < 0) stale_at = k;
+    max_jump = std::max(max_jump, std::abs(out.force[0].x() - prev));
+    prev = out.force[0].x();
+  }
+  // stale once the state is older than 5 ms (the 5th or 6th tick, by the clock's rounding)
+  EXPECT_GE(stale_at, 5);
+  EXPECT_LE(stale_at, 6);
+  EXPECT_TRUE(out.flags & kFlagStale);
+  EXPECT_EQ(out.force[0], Vec3::Zero());
+  EXPECT_EQ(g.counters().stale_events, 1u);
+  EXPECT_LE(max_jump, 2.0 * 0.001 / 0.02 + 1e-12);  // a ramp, not a step
+  // Fresh state again: the force comes back as a ramp.
+  max_jump = 0.0;
+  for (int k = 1; k <= 40; ++k) {
+    t += 0.001;
+    g.apply(t, t, in, out);
+    max_jump = std::max(max_jump, std::abs(out.force[0].x() - prev));
+    prev = out.force[0].x();
+  }
+  EXPECT_FALSE(g.stale());
+  EXPECT_NEAR(out.force[0].x(), 2.0, 1e-12);
+  EXPECT_LE(max_jump, 2.0 * 0.001 / 0.02 + 1e-12);
+}
+
+TEST(SafetyGate, NeverStateIsStaleAndApplyAllocatesNothing) {
+  SafetyGate g(two_fingers());
+  DeviceCommand in, out;
+  in.force[0] = Vec3(1, 1, 1);
+  hapticloth::test::AllocationGuard guard;
+  for (int k = 0; k < 100; ++k) g.apply(0.001 * k, -1.0, in, out);
+  EXPECT_EQ(guard.count(), 0u);
+  EXPECT_TRUE(g.stale());
+  EXPECT_EQ(out.force[0], Vec3::Zero());
+  GateConfig bad;
+  bad.slew_rate = -1;
+  EXPECT_THROW(SafetyGate(two_fingers(), bad), std::invalid_argument);
+}
+
+namespace {
+// A scripted driver for the lifecycle tests: fails where told.
+struct FakeDriver : Device {
+  DeviceInfo inf = two_fingers();
+  std::string cfg_err, act_err;
+  bool read_error = false;
+  int reads = 0, writes = 0, deactivations = 0;
+  DeviceCounters cnt;
+  const DeviceInfo& info() const override { return inf; }
+  std::string configure() override { return cfg_err; }
+  std::string activate() override { return act_err; }
+  void deactivate() override { ++deactivations; }
+  Status read(double, DeviceState&) noexcept override {
+    ++reads;
+    return read_error ? Status::Error : Status::Ok;
+  }
+  Status write(double, const DeviceCommand&) noexcept override {
+    ++writes;
+    return Status::Ok;
+  }
+  const DeviceCounters& counters() const override { return cnt; }
+};
+}  // namespace
+
+TEST(DeviceLifecycle, TransitionsAndErrors) {
+  auto d = std::make_unique<FakeDriver>();
+  FakeDriver* raw = d.get();
+  DeviceHandle h(std::move(d));
+  DeviceState s;
+  DeviceCommand c;
+  EXPECT_EQ(h.state(), Lifecycle::Unconfigured);
+  EXPECT_EQ(h.read(0, s), Status::Error);  // not active: the driver is not called
+  EXPECT_EQ(raw->reads, 0);
+  EXPECT_FALSE(h.activate().empty());      // cannot activate before configure
+  raw->cfg_err = "no such port";
+  EXPECT_EQ(h.configure(), "no such port");
+  EXPECT_EQ(h.state(), Lifecycle::Unconfigured);
+  raw->cfg_err.clear();
+  EXPECT_EQ(h.configure(), "");
+  EXPECT_EQ(h.state(), Lifecycle::Inactive);
+  EXPECT_FALSE(h.configure().empty());     // twice is an error
+  raw->act_err = "rig not answering";
+  EXPECT_EQ(h.activate(), "rig not answering");
+  EXPECT_EQ(h.state(), Lifecycle::Inactive);
+  raw->act_err.clear();
+  EXPECT_EQ(h.activate(), "");
+  EXPECT_EQ(h.state(), Lifecycle::Active);
+  EXPECT_EQ(h.read(0, s), Status::Ok);
+  EXPECT_EQ(h.write(0, c), Status::Ok);
+  raw->read_error = true;
+  EXPECT_EQ(h.read(0.001, s), Status::Error);
+  EXPECT_EQ(h.state(), Lifecycle::Failed);
+  EXPECT_EQ(h.write(0.001, c), Status::Error);  // failed: no more writes reach the driver
+  EXPECT_EQ(raw->writes, 1);
+  h.deactivate();
+  EXPECT_EQ(h.state(), Lifecycle::Inactive);
+  EXPECT_EQ(raw->deactivations, 1);
+  raw->read_error = false;
+  EXPECT_EQ(h.activate(), "");  // can be reactivated
+  EXPECT_EQ(h.read(0.002, s), Status::Ok);
+  // A driver whose info breaks the HAL contract is refused at configure.
+  auto bad = std::make_unique<FakeDriver>();
+  bad->inf.fingers = 1;
+  DeviceHandle hb(std::move(bad));
+  EXPECT_NE(hb.configure().find("fingers"), std::string::npos);
+}
