@@ -1,0 +1,241 @@
+#include "udp/udp_device.hpp"
+
+#include <arpa/inet.h>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fcntl.h>
+#include <stdexcept>
+#include <sys/socket.h>
+#include <unistd.h>
+
+namespace hapticloth::devices {
+
+namespace {
+
+/// Receive buffer asked of the kernel: a few hundred packets, so a loop that stalls for a
+/// moment loses nothing (read() still takes only the newest).
+constexpr int kReceiveBufferBytes = 1 << 20;
+
+std::string errno_text(const char* what) { return std::string(what) + ": " + std::strerror(errno); }
+
+/// Errors after which the socket is still usable: the next tick may succeed.
+bool transient_send_error(int e) {
+  return e == EAGAIN || e == EWOULDBLOCK || e == ENOBUFS || e == EINTR || e == ECONNREFUSED ||
+         e == EHOSTUNREACH || e == ENETUNREACH || e == ENETDOWN || e == EPERM;
+}
+
+}  // namespace
+
+std::string parse_udp_endpoint(const std::string& text, UdpEndpoint& out) {
+  const auto bad = [&](const std::string& why) {
+    return "udp_bind '" + text + "': " + why + " (expected HOST:PORT, for example 127.0.0.1:" +
+           std::to_string(kDefaultUdpPort) + ")";
+  };
+  const auto colon = text.rfind(':');
+  if (colon == std::string::npos) return bad("no ':PORT'");
+  const std::string host = text.substr(0, colon), port = text.substr(colon + 1);
+  if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos)
+    return bad("port is not a number in 0..65535");
+  const unsigned long p = std::stoul(port);
+  if (p > 65535) return bad("port is above 65535");
+  in_addr a{};
+  if (host == "localhost") {
+    a.s_addr = htonl(INADDR_LOOPBACK);
+  } else if (host.empty() || inet_pton(AF_INET, host.c_str(), &a) != 1) {
+    return bad("host is not a numeric IPv4 address or 'localhost'");
+  }
+  out.address = ntohl(a.s_addr);
+  out.port = static_cast<std::uint16_t>(p);
+  return "";
+}
+
+UdpDevice::UdpDevice(const DeviceOptions& opt) : opt_(opt) {
+  const std::string err = parse_udp_endpoint(opt.udp_bind, bind_);
+  if (!err.empty()) throw std::invalid_argument(err);
+  if (opt.fingers < 1 || opt.fingers > kMaxFingers)
+    throw std::invalid_argument("fingers " + std::to_string(opt.fingers) +
+                                ": the udp device takes 1 to " + std::to_string(kMaxFingers));
+  info_.name = "udp " + opt.udp_bind;
+  info_.fingers = opt.fingers;
+  info_.workspace = opt.workspace;
+  info_.max_force = opt.max_force;
+  info_.max_stiffness = opt.max_stiffness;
+  info_.nominal_rate = opt.rate;
+}
+
+UdpDevice::~UdpDevice() { close_socket(); }
+
+std::string UdpDevice::open_socket() {
+  if (fd_ >= 0) return "";
+  const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+  if (fd < 0) return errno_text("udp: socket");
+  int rcvbuf = kReceiveBufferBytes;
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);  // best effort
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(bind_.address);
+  a.sin_port = htons(bind_.port);
+  if (::bind(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0) {
+    const std::string err = errno_text(("udp: bind " + opt_.udp_bind).c_str());
+    ::close(fd);
+    return err;
+  }
+  socklen_t len = sizeof a;
+  if (::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) != 0) {
+    const std::string err = errno_text("udp: getsockname");
+    ::close(fd);
+    return err;
+  }
+  fd_ = fd;
+  local_port_ = ntohs(a.sin_port);
+  return "";
+}
+
+void UdpDevice::close_socket() {
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
+}
+
+std::string UdpDevice::configure() {
+  try {
+    return open_socket();
+  } catch (const std::exception& e) {  // std::string allocation only
+    return std::string("udp: ") + e.what();
+  }
+}
+
+std::string UdpDevice::activate() {
+  try {
+    const std::string err = open_socket();
+    if (!err.empty()) return err;
+    const std::size_t rows =
+        opt_.record_path.empty()
+            ? 0
+            : static_cast<std::size_t>(kRecordSeconds * info_.nominal_rate) * info_.fingers;
+    log_.reserve(rows);
+  } catch (const std::exception& e) {
+    return std::string("udp: ") + e.what();
+  }
+  // A new session: accept whatever sequence the rig starts from.
+  have_sample_ = false;
+  recorded_newest_ = true;
+  return "";
+}
+
+void UdpDevice::deactivate() {
+  if (fd_ >= 0 && have_sample_) {
+    bool broken = false;
+    send_force(state_.received_time, DeviceCommand{}, broken);  // zero forces, flags 0
+  }
+  close_socket();
+  if (!opt_.record_path.empty()) log_.write_csv(opt_.record_path);
+}
+
+void UdpDevice::take(const udp::StatePacket& p, const sockaddr_in& from) {
+  newest_ = p;
+  have_sample_ = true;
+  peer_ = from;
+  ++counters_.samples;
+}
+
+Status UdpDevice::read(double now, DeviceState& state) noexcept {
+  ++counters_.reads;
+  if (fd_ < 0) return Status::Error;
+  bool fresh = false;
+  for (int i = 0; i < kMaxDatagramsPerRead; ++i) {
+    sockaddr_in from{};
+    socklen_t from_len = sizeof from;
+    // MSG_TRUNC: the datagram's real length even if it is longer than the buffer.
+    const ssize_t n = ::recvfrom(fd_, rx_.data(), rx_.size(), MSG_DONTWAIT | MSG_TRUNC,
+                                 reinterpret_cast<sockaddr*>(&from), &from_len);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      if (errno == EAGAIN || errno == EWOULDBLOCK || errno == ECONNREFUSED) break;
+      return Status::Error;
+    }
+    if (static_cast<std::size_t>(n) > rx_.size()) {
+      ++counters_.dropped_malformed;
+      continue;
+    }
+    udp::StatePacket p;
+    switch (udp::parse_state_packet(rx_.data(), static_cast<std::size_t>(n), info_.fingers,
+                                    info_.workspace, p)) {
+      case udp::ParseResult::Malformed: ++counters_.dropped_malformed; continue;
+      case udp::ParseResult::BadVersion: ++counters_.dropped_version; continue;
+      case udp::ParseResult::OutOfRange: ++counters_.dropped_out_of_range; continue;
+      case udp::ParseResult::Ok: break;
+    }
+    // Sequence rules against the newest sample taken (proto/udp_device.md).
+    if (have_sample_ && p.sequence == newest_.sequence) {
+      ++counters_.dropped_duplicate;
+      continue;
+    }
+    if (have_sample_ && p.sequence < newest_.sequence) {
+      ++counters_.dropped_reordered;
+      continue;
+    }
+    take(p, from);
+    fresh = true;
+  }
+  if (!fresh) return Status::NoData;
+
+  state_.device_time = newest_.device_time;
+  state_.received_time = now;
+  state_.sequence = newest_.sequence;
+  for (int f = 0; f < kMaxFingers; ++f)
+    state_.finger[f] = f < newest_.fingers ? newest_.finger[f] : FingerState{};
+  recorded_newest_ = false;
+  state = state_;
+  return Status::Ok;
+}
+
+bool UdpDevice::send_force(double now, const DeviceCommand& cmd, bool& broken) noexcept {
+  udp::ForcePacket fp;
+  fp.sequence = newest_.sequence;
+  fp.server_time = std::isfinite(now) ? now : 0.0;
+  fp.flags = cmd.flags;
+  fp.fingers = info_.fingers;
+  for (int f = 0; f < info_.fingers; ++f) {
+    // Defence in depth: the safety gate upstream already replaces non-finite forces.
+    if (cmd.force[f].allFinite()) {
+      fp.force[f] = cmd.force[f];
+    } else {
+      fp.force[f].setZero();
+      fp.flags |= kFlagFault;
+    }
+  }
+  const std::size_t n = udp::encode_force_packet(fp, tx_.data(), tx_.size());
+  for (int attempt = 0; attempt < 2; ++attempt) {  // one retry after EINTR
+    const ssize_t sent = ::sendto(fd_, tx_.data(), n, MSG_DONTWAIT,
+                                  reinterpret_cast<const sockaddr*>(&peer_), sizeof peer_);
+    if (sent == static_cast<ssize_t>(n)) break;
+    if (sent < 0 && errno == EINTR && attempt == 0) continue;
+    ++counters_.send_errors;
+    broken = sent < 0 && !transient_send_error(errno);
+    return false;
+  }
+  ++counters_.writes;
+  if (!recorded_newest_ && !opt_.record_path.empty()) {
+    DeviceCommand sent;
+    sent.flags = fp.flags;
+    for (int f = 0; f < info_.fingers; ++f) sent.force[f] = fp.force[f];
+    log_.record(state_.received_time, info_.fingers, state_, sent);
+  }
+  recorded_newest_ = true;
+  return true;
+}
+
+Status UdpDevice::write(double now, const DeviceCommand& cmd) noexcept {
+  if (fd_ < 0) return Status::Error;
+  if (!have_sample_) return Status::NoData;
+  bool broken = false;
+  if (send_force(now, cmd, broken)) return Status::Ok;
+  return broken ? Status::Error : Status::NoData;
+}
+
+std::unique_ptr<Device> make_udp_device(const DeviceOptions& opt) {
+  return std::make_unique<UdpDevice>(opt);
+}
+
+}  // namespace hapticloth::devices

@@ -1,0 +1,99 @@
+// The UDP device: a haptic rig streams state packets to a bound UDP socket and receives one
+// force packet per loop tick (protocol: proto/udp_device.md).
+//
+// read() drains every pending datagram (at most kMaxDatagramsPerRead per call), keeps the
+// newest valid sample and counts each dropped datagram under the counter the protocol names.
+// write() answers the sender of the newest valid sample. Both are non-blocking, allocation-free
+// and never throw.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include <netinet/in.h>
+
+#include "hal/device.hpp"
+#include "hal/options.hpp"
+#include "log/device_log.hpp"
+#include "udp/wire.hpp"
+
+namespace hapticloth::devices {
+
+/// An IPv4 endpoint parsed from "HOST:PORT".
+struct UdpEndpoint {
+  std::uint32_t address = 0;  ///< host byte order
+  std::uint16_t port = 0;     ///< 0: any free port (see UdpDevice::local_port)
+};
+
+/// Parses "HOST:PORT" where HOST is a numeric IPv4 address or "localhost" and PORT is 0..65535.
+/// Returns an empty string on success, else what is wrong (naming `udp_bind`).
+std::string parse_udp_endpoint(const std::string& text, UdpEndpoint& out);
+
+class UdpDevice final : public Device {
+ public:
+  /// Datagrams read per read() call at most (bounds the time read() takes under a flood).
+  static constexpr int kMaxDatagramsPerRead = 256;
+  /// The device log keeps the first this many seconds at the nominal rate.
+  static constexpr double kRecordSeconds = 300.0;
+
+  /// Throws std::invalid_argument naming the field for a bad udp_bind or finger count.
+  explicit UdpDevice(const DeviceOptions& opt);
+  ~UdpDevice() override;
+  UdpDevice(const UdpDevice&) = delete;
+  UdpDevice& operator=(const UdpDevice&) = delete;
+
+  const DeviceInfo& info() const override { return info_; }
+  /// Creates, binds and makes non-blocking the socket. Returns the error (for example the port
+  /// is in use); never throws.
+  std::string configure() override;
+  /// Reopens the socket if a deactivate closed it; reserves the device log.
+  std::string activate() override;
+  /// Sends one zero-force packet to the known peer, closes the socket, writes the device log
+  /// (throws std::runtime_error if the log cannot be written; the socket is closed first).
+  void deactivate() override;
+
+  /// Real-time path. Ok: a new valid sample was taken (state filled); NoData: none arrived;
+  /// Error: the socket is not open or failed.
+  Status read(double now, DeviceState& state) noexcept override;
+  /// Real-time path. Ok: sent; NoData: no rig has sent a valid sample yet, or a transient send
+  /// failure (counted in send_errors); Error: the socket is not open or broken. Non-finite
+  /// forces are sent as zero with kFlagFault set.
+  Status write(double now, const DeviceCommand& cmd) noexcept override;
+  const DeviceCounters& counters() const override { return counters_; }
+
+  /// The bound UDP port (after configure; useful with port 0).
+  std::uint16_t local_port() const { return local_port_; }
+  const DeviceLogRecorder& log() const { return log_; }
+
+ private:
+  std::string open_socket();
+  void close_socket();
+  void take(const udp::StatePacket& p, const sockaddr_in& from);
+  bool send_force(double now, const DeviceCommand& cmd, bool& broken) noexcept;
+
+  DeviceOptions opt_;
+  DeviceInfo info_;
+  UdpEndpoint bind_;
+  DeviceCounters counters_;
+  int fd_ = -1;
+  std::uint16_t local_port_ = 0;
+
+  // Newest valid sample taken and where it came from.
+  bool have_sample_ = false;
+  udp::StatePacket newest_;
+  DeviceState state_;
+  sockaddr_in peer_{};
+  bool recorded_newest_ = true;  ///< the newest sample's row is already in the log
+
+  alignas(8) std::array<std::uint8_t, 2048> rx_{};
+  alignas(8) std::array<std::uint8_t, udp::kMaxForcePacketBytes> tx_{};
+  DeviceLogRecorder log_;
+};
+
+/// The registry's factory for driver "udp". Throws std::invalid_argument naming `udp_bind` for
+/// a bad HOST:PORT (and `fingers` for a finger count outside 1..kMaxFingers).
+std::unique_ptr<Device> make_udp_device(const DeviceOptions& opt);
+
+}  // namespace hapticloth::devices
