@@ -279,6 +279,7 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
   guess_.setZero(n);
   const int nv = model_.num_vertices();
   f_ext_.assign(nv, Vec3::Zero());
+  k_ext_.assign(nv, Mat3::Zero());
   xn_.assign(nv, Vec3::Zero());
   vn_.assign(nv, Vec3::Zero());
   x_start_.assign(nv, Vec3::Zero());
@@ -326,6 +327,14 @@ bool Integrator::assemble(const ClothState& s, double h, JacobianMode mode) {
     const int stride = model_.row_stride[f];
     for (int r = 0; r < 3; ++r) dst[r * stride + r] += mi + ah * ci;
     rhs_.segment<3>(3 * f) += h * (mi * cfg_.gravity - ci * s.v[i] + f_ext_[i]);
+    if (external_stiffness_on) {
+      // f_ext(x + dx) ~ f_ext - K dx: K joins H in eq. 9 (alpha^2 h^2 K in the matrix, -alpha h^2 K v
+      // on the right).
+      const Mat3& K = k_ext_[i];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) dst[r * stride + c] += ah * ah * K(r, c);
+      rhs_.segment<3>(3 * f) -= ah * h * (K * s.v[i]);
+    }
     ke += 0.5 * mi * s.v[i].squaredNorm();
     eg -= mi * cfg_.gravity.dot(s.x[i]);
   }

@@ -65,6 +65,11 @@ class Integrator {
 
   /// External forces (N) per vertex, applied on every step until changed. Sized to vertices.
   std::vector<Vec3>& external_forces() { return f_ext_; }
+  /// Stiffness of the external forces (N/m per vertex, -d f_ext / d x, symmetric PSD), so that a
+  /// stiff contact spring enters the solve implicitly. Zero by default; set
+  /// `external_stiffness_on` when any is non-zero (skipped otherwise).
+  std::vector<Mat3>& external_stiffness() { return k_ext_; }
+  bool external_stiffness_on = false;
 
   const IntegratorEvents& events() const { return events_; }
   const StepTiming& last_timing() const { return timing_; }
@@ -97,6 +102,7 @@ class Integrator {
   SymCsr A_;
   Eigen::VectorXd rhs_, dv_, dv_prev_, guess_;  // dv_prev_: the solution before dv_
   std::vector<Vec3> f_ext_;
+  std::vector<Mat3> k_ext_;
   std::vector<Vec3> xn_, vn_;              // candidate state of a (sub)step
   std::vector<Vec3> x_start_, v_start_;    // state at the start of step()
   double energy_old_ = 0.0, energy_scale_ = 0.0;

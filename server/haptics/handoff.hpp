@@ -1,0 +1,66 @@
+// What the simulation thread hands the haptic thread and back (through TripleBuffers).
+// All storage is sized once at set-up; copying a snapshot into a slot never allocates.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "hal/device.hpp"
+
+namespace hapticloth::haptics {
+
+using Vec3 = Eigen::Vector3d;
+inline constexpr int kMaxFingers = devices::kMaxFingers;
+inline constexpr int kMaxCandidates = 256;  ///< triangles per finger from the broad phase
+
+/// Global cloth state at one simulation step, for the haptic loop.
+struct ClothSnapshot {
+  double time = -1.0;         ///< loop clock of the step (s); < 0: none yet
+  std::uint64_t step = 0;
+  std::vector<Vec3> x, v, n;  ///< vertex positions (m), velocities (m/s), unit normals
+  std::array<std::array<int, kMaxCandidates>, kMaxFingers> cand{};
+  std::array<int, kMaxFingers> ncand{};  ///< candidate triangles per finger
+  std::array<bool, kMaxFingers> overflow{};  ///< more candidates than kMaxCandidates
+
+  void resize(int vertices) {
+    x.assign(vertices, Vec3::Zero());
+    v.assign(vertices, Vec3::Zero());
+    n.assign(vertices, Vec3::UnitZ());
+  }
+  /// Copy that keeps this snapshot's storage (no allocation when sizes match).
+  void assign(const ClothSnapshot& o) {
+    time = o.time;
+    step = o.step;
+    std::copy(o.x.begin(), o.x.end(), x.begin());
+    std::copy(o.v.begin(), o.v.end(), v.begin());
+    std::copy(o.n.begin(), o.n.end(), n.begin());
+    cand = o.cand;
+    ncand = o.ncand;
+    overflow = o.overflow;
+  }
+};
+
+/// One finger as the haptic loop saw it on its latest tick (scene frame).
+struct FingerReport {
+  Vec3 position = Vec3::Zero();  ///< fingertip centre (device position mapped to the scene), m
+  Vec3 proxy = Vec3::Zero();     ///< god-object position, m
+  Vec3 force = Vec3::Zero();     ///< force on the user's finger, N (the cloth gets -force)
+  Vec3 normal = Vec3::Zero();    ///< shaded contact normal, pointing towards the finger
+  Vec3 contact = Vec3::Zero();   ///< contact point on the cloth, m
+  int triangle = -1;             ///< contact triangle, -1 if none
+  double bary[3] = {0, 0, 0};
+  double stiffness = 0.0;        ///< N/m of the contact spring (for the implicit coupling)
+  bool in_contact = false;
+  bool slipping = false;
+};
+
+struct HapticReport {
+  double time = -1.0;
+  std::uint64_t tick = 0;
+  std::array<FingerReport, kMaxFingers> finger{};
+};
+
+}  // namespace hapticloth::haptics

@@ -1,0 +1,153 @@
+#include "haptics/haptic_loop.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "haptics/geometry.hpp"
+
+namespace hapticloth::haptics {
+
+HapticLoop::HapticLoop(const std::vector<std::array<int, 3>>& triangles, int vertices,
+                       devices::DeviceHandle& device, devices::SafetyGate& gate,
+                       const FingerParams& finger, const DeviceMapping& map,
+                       TripleBuffer<ClothSnapshot>& from_sim, TripleBuffer<HapticReport>& to_sim)
+    : tris_(triangles),
+      dev_(device),
+      gate_(gate),
+      fp_(finger),
+      map_(map),
+      in_(from_sim),
+      out_(to_sim),
+      fingers_(device.info().fingers) {
+  (void)vertices;
+  k_ = std::min(fp_.stiffness, device.info().max_stiffness);
+}
+
+void HapticLoop::finger_contact(int f, double now, double tick_dt, const Vec3& c,
+                                const Vec3& vc, FingerReport& out) noexcept {
+  const ClothSnapshot& s = in_.front();
+  Proxy& P = proxy_[f];
+  out.position = c;
+  out.proxy = c;
+  out.force.setZero();
+  out.in_contact = false;
+  out.slipping = false;
+  out.triangle = -1;
+  out.stiffness = 0.0;
+  const int nc = s.time >= 0.0 ? s.ncand[f] : 0;
+  if (nc == 0) {
+    P.contact = false;
+    P.side = 0;
+    return;
+  }
+  // Exact narrow phase on the candidates, cloth extrapolated at constant velocity (4.2).
+  const double dt = std::clamp(now - s.time, 0.0, 0.05);
+  double best = 1e300;
+  int bt = -1;
+  ClosestPoint bc{};
+  for (int k = 0; k < nc; ++k) {
+    const auto& t = tris_[s.cand[f][k]];
+    const Vec3 a = s.x[t[0]] + dt * s.v[t[0]];
+    const Vec3 b = s.x[t[1]] + dt * s.v[t[1]];
+    const Vec3 cc = s.x[t[2]] + dt * s.v[t[2]];
+    const ClosestPoint cp = closest_point_triangle(c, a, b, cc);
+    if (cp.dist2 < best) {
+      best = cp.dist2;
+      bt = s.cand[f][k];
+      bc = cp;
+    }
+  }
+  const auto& t = tris_[bt];
+  // Force shading (4.1.2): the normal interpolated from vertex normals at the contact point,
+  // so the force direction turns smoothly across triangle edges.
+  Vec3 n = bc.b[0] * s.n[t[0]] + bc.b[1] * s.n[t[1]] + bc.b[2] * s.n[t[2]];
+  const double nn = n.norm();
+  n = nn > 0.0 ? Vec3(n / nn) : Vec3::UnitZ();
+  const Vec3 vs = bc.b[0] * s.v[t[0]] + bc.b[1] * s.v[t[1]] + bc.b[2] * s.v[t[2]];
+  const Vec3 q = bc.point;
+  const double h = (c - q).dot(n);
+  const double dist = std::sqrt(best);
+  if (!P.contact) {
+    // Separated: remember which side the finger is on; touching starts when the sphere reaches
+    // the surface from that side.
+    if (dist >= fp_.radius || P.side == 0) {
+      P.side = h >= 0.0 ? 1 : -1;
+      if (dist >= fp_.radius) return;
+    }
+    P.contact = true;
+    P.anchor = c;
+  }
+  const double depth = fp_.radius - P.side * h;  // > 0: pressing into the cloth
+  if (depth <= 0.0) {
+    P.contact = false;  // left the surface on its own side
+    return;
+  }
+  const Vec3 ns = P.side * n;  // normal towards the finger
+  // God-object: the proxy rests on the surface on the finger's side; the user feels the spring
+  // from the fingertip to it, plus normal damping relative to the cloth.
+  // Normal damping on the fingertip's own velocity (virtual-coupling damping for the device).
+  // Damping against the cloth's velocity would feed the cloth's motion back through the
+  // one-step-late handoff and set up a two-tick oscillation of the light cloth vertices.
+  const double fn = std::max(0.0, k_ * depth - fp_.damping * vc.dot(ns));
+  // Coulomb friction, god-object style: the anchor is where the fingertip centre touched down,
+  // carried by the cloth. While the fingertip stays within the friction cone around it the
+  // tangential spring sticks; beyond, the anchor slides along behind the finger (slip).
+  // (Anchoring the closest point instead would jump when the finger sits in a dimple, whose
+  // closest point is not unique.)
+  P.anchor += tick_dt * vs;
+  Vec3 d = P.anchor - c;
+  d -= d.dot(ns) * ns;
+  Vec3 Ft = k_ * d;
+  const double ft = Ft.norm(), lim = fp_.friction * fn;
+  if (ft > lim) {
+    Ft *= lim / ft;
+    out.slipping = true;
+  }
+  P.anchor = c + Ft / k_;
+  out.force = fn * ns + Ft;
+  out.proxy = c + out.force / k_;
+  out.normal = ns;
+  out.contact = q;
+  out.triangle = bt;
+  for (int i = 0; i < 3; ++i) out.bary[i] = bc.b[i];
+  out.stiffness = k_;
+  out.in_contact = true;
+}
+
+void HapticLoop::tick(double now) noexcept {
+  ++tick_;
+  const double tick_dt = last_now_ >= 0.0 ? std::clamp(now - last_now_, 0.0, 0.05) : 0.0;
+  if (dev_.read(now, state_) == devices::Status::Error) ++device_errors_;
+  in_.acquire();
+  const ClothSnapshot& s = in_.front();
+  bool any_cand = false;
+  for (int f = 0; f < fingers_; ++f) {
+    any_cand = any_cand || (s.time >= 0.0 && s.ncand[f] > 0);
+    if (s.overflow[f]) ++overflows_;
+  }
+  if (!any_cand) ++np_skipped_;
+  bool contact = false;
+  report_.time = now;
+  report_.tick = tick_;
+  for (int f = 0; f < fingers_; ++f) {
+    const Vec3 c = map_.origin + map_.R * state_.finger[f].position;
+    const Vec3 vc = map_.R * state_.finger[f].velocity;
+    finger_contact(f, now, tick_dt, c, vc, report_.finger[f]);
+    contact = contact || report_.finger[f].in_contact;
+    // Scene -> device frame for the force.
+    cmd_.force[f] = map_.R.transpose() * report_.finger[f].force;
+  }
+  if (contact) ++contact_ticks_;
+  gate_.apply(now, state_.received_time, cmd_, gated_);
+  if (dev_.write(now, gated_) == devices::Status::Error) ++device_errors_;
+  // The simulation gets what the user actually feels (after the gate), in the scene frame.
+  for (int f = 0; f < fingers_; ++f) {
+    FingerReport& r = report_.finger[f];
+    if (r.in_contact) r.force = map_.R * gated_.force[f];
+  }
+  out_.back() = report_;
+  out_.publish();
+  last_now_ = now;
+}
+
+}  // namespace hapticloth::haptics

@@ -1,0 +1,201 @@
+#include "haptics/session.hpp"
+
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <iomanip>
+#include <sstream>
+#include <thread>
+
+#include <pthread.h>
+#include <sched.h>
+#include <sys/mman.h>
+#include <sys/prctl.h>
+#include <time.h>
+
+#include <nlohmann/json.hpp>
+
+namespace hapticloth::haptics {
+
+namespace {
+std::vector<std::array<int, 3>> triangles_of(const cloth::ClothModel& m) {
+  std::vector<std::array<int, 3>> t;
+  for (const auto& e : m.elements) t.push_back({e.v[0], e.v[1], e.v[2]});
+  return t;
+}
+ClothSnapshot sized_snapshot(int vertices) {
+  ClothSnapshot s;
+  s.resize(vertices);
+  return s;
+}
+double mono_now() {
+  timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+timespec to_timespec(double t) {
+  timespec ts;
+  ts.tv_sec = static_cast<time_t>(t);
+  ts.tv_nsec = static_cast<long>((t - ts.tv_sec) * 1e9);
+  if (ts.tv_nsec >= 1000000000L) {
+    ++ts.tv_sec;
+    ts.tv_nsec -= 1000000000L;
+  }
+  return ts;
+}
+}  // namespace
+
+Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& cfg,
+                 std::unique_ptr<cloth::LinearSolver> solver, const cloth::ClothState& start,
+                 devices::DeviceHandle& device, const SessionConfig& sc)
+    : dev_(device), sc_(sc), dt_sim_(cfg.dt), tris_(triangles_of(model)) {
+  if (dev_.state() != devices::Lifecycle::Inactive)
+    throw std::invalid_argument("session: the device must be configured (inactive)");
+  if (!(sc_.haptic_rate > 0.0)) throw std::invalid_argument("session: haptic_rate must be > 0");
+  gate_ = std::make_unique<devices::SafetyGate>(dev_.info(), sc_.gate);
+  snap_ = std::make_unique<TripleBuffer<ClothSnapshot>>(sized_snapshot(model.num_vertices()));
+  rep_ = std::make_unique<TripleBuffer<HapticReport>>(HapticReport{});
+  sim_ = std::make_unique<SimWorker>(model, cfg, std::move(solver), start, dev_.info().fingers,
+                                     sc_.finger, sc_.coupling, *snap_, *rep_);
+  loop_ = std::make_unique<HapticLoop>(tris_, model.num_vertices(), dev_, *gate_, sc_.finger,
+                                       sc_.mapping, *snap_, *rep_);
+}
+
+Session::~Session() { dev_.deactivate(); }
+
+void Session::start() {
+  if (dev_.state() == devices::Lifecycle::Inactive) {
+    const std::string e = dev_.activate();
+    if (!e.empty()) throw std::runtime_error("device: " + e);
+  }
+  gate_->reset();
+}
+
+void Session::stop() { dev_.deactivate(); }
+
+void Session::account_tick() {
+  const HapticReport& r = loop_->last_report();
+  for (int f = 0; f < loop_->fingers(); ++f) {
+    r_.max_force = std::max(r_.max_force, loop_->last_command().force[f].norm());
+    if (r.finger[f].slipping) ++r_.slip_ticks;
+  }
+}
+
+void Session::run_realtime(double seconds) {
+  start();
+  std::atomic<bool> stop_flag{false};
+  r_.haptic = LoopStats{};
+  // Real-time scheduling when permitted; a clean fallback (with the reason) when not.
+  r_.memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+  std::string note;
+  const double period = 1.0 / sc_.haptic_rate;
+  const double t_start = mono_now() + 0.01;
+  // The simulation publishes once before the haptic loop starts.
+  sim_->publish(0.0);
+
+  std::thread sim_thread([&] {
+    double next = t_start;
+    while (!stop_flag.load(std::memory_order_relaxed)) {
+      const double now = mono_now() - t_start;
+      sim_->step(now);
+      next += dt_sim_;
+      const double t = mono_now();
+      if (next > t) {
+        const timespec ts = to_timespec(next);
+        clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+      } else {
+        next = t;  // behind: run as fast as the step allows
+      }
+    }
+  });
+
+  std::thread haptic_thread([&] {
+    prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);  // wake on the deadline, not up to 50 us later
+    if (sc_.try_realtime) {
+      sched_param sp{};
+      sp.sched_priority = 80;
+      const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+      r_.realtime_scheduling = rc == 0;
+      note = rc == 0 ? "SCHED_FIFO priority 80" : std::string("SCHED_FIFO refused (") + std::strerror(rc) + "): normal scheduling";
+    } else {
+      note = "real-time scheduling not requested";
+    }
+    const long ticks = std::lround(seconds * sc_.haptic_rate);
+    for (long k = 0; k < ticks; ++k) {
+      const double deadline = t_start + k * period;
+      const timespec ts = to_timespec(deadline);
+      clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+      const double woke = mono_now();
+      r_.haptic.period_error_us.add(std::abs(woke - deadline) * 1e6);
+      loop_->tick(woke - t_start);
+      account_tick();
+      const double done = mono_now();
+      r_.haptic.compute_us.add((done - woke) * 1e6);
+      ++r_.haptic.ticks;
+      if (done > deadline + period) ++r_.haptic.missed_deadlines;
+    }
+  });
+  haptic_thread.join();
+  stop_flag = true;
+  sim_thread.join();
+  r_.sim_time = seconds;
+  r_.scheduling_note = note;
+  if (r_.memory_locked) munlockall();
+  stop();
+}
+
+SessionReport Session::report() const {
+  SessionReport r = r_;
+  r.sim_step_us = sim_->step_us();
+  r.sim_steps = sim_->steps();
+  r.contact_ticks = loop_->contact_ticks();
+  r.narrow_phase_skipped = loop_->narrow_phase_skipped();
+  r.device_errors = loop_->device_errors();
+  r.candidate_overflows = loop_->candidate_overflows();
+  return r;
+}
+
+std::string SessionReport::to_text() const {
+  std::ostringstream os;
+  os.setf(std::ios::fixed);
+  os.precision(1);
+  auto h = [&](const char* name, const Histogram& x) {
+    os << name << "p50 " << x.quantile(0.5) << ", p99 " << x.quantile(0.99) << ", p99.9 "
+       << x.quantile(0.999) << ", max " << x.max() << " us\n";
+  };
+  os << "haptic ticks     " << haptic.ticks << " (" << missed_deadlines() << " missed deadlines)\n";
+  if (haptic.ticks > 0 && haptic.period_error_us.count() > 0) h("period error     ", haptic.period_error_us);
+  if (haptic.compute_us.count() > 0) h("tick compute     ", haptic.compute_us);
+  h("sim step         ", sim_step_us);
+  os << "sim steps        " << sim_steps << " (" << std::setprecision(3) << sim_time << " s)\n";
+  os << "contact ticks    " << contact_ticks << " (slipping " << slip_ticks << "), max force "
+     << max_force << " N\n";
+  os << "narrow phase     skipped on " << narrow_phase_skipped << " ticks (no finger near the cloth)\n";
+  os << "scheduling       " << scheduling_note << (memory_locked ? ", memory locked" : "") << "\n";
+  return os.str();
+}
+
+std::string SessionReport::to_json() const {
+  nlohmann::json j;
+  auto h = [](const Histogram& x) {
+    return nlohmann::json{{"p50", x.quantile(0.5)}, {"p99", x.quantile(0.99)},
+                          {"p999", x.quantile(0.999)}, {"max", x.max()}};
+  };
+  j["haptic_ticks"] = haptic.ticks;
+  j["missed_deadlines"] = haptic.missed_deadlines;
+  j["period_error_us"] = h(haptic.period_error_us);
+  j["compute_us"] = h(haptic.compute_us);
+  j["sim_step_us"] = h(sim_step_us);
+  j["sim_steps"] = sim_steps;
+  j["contact_ticks"] = contact_ticks;
+  j["slip_ticks"] = slip_ticks;
+  j["max_force_n"] = max_force;
+  j["narrow_phase_skipped"] = narrow_phase_skipped;
+  j["device_errors"] = device_errors;
+  j["realtime_scheduling"] = realtime_scheduling;
+  j["memory_locked"] = memory_locked;
+  return j.dump();
+}
+
+}  // namespace hapticloth::haptics

@@ -1,0 +1,104 @@
+// A haptic session: the global simulation and the 1 kHz haptic loop around one device.
+// Real time: two threads (haptic thread on absolute clock_nanosleep deadlines, SCHED_FIFO and
+// mlockall when permitted; simulation thread at its own rate) exchanging state through
+// lock-free triple buffers. Stepped: both in one thread on a simulated clock, deterministic,
+// as fast as possible (tests, replays).
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <string>
+
+#include "cloth/integrator.hpp"
+#include "hal/handle.hpp"
+#include "hal/safety_gate.hpp"
+#include "haptics/haptic_loop.hpp"
+#include "haptics/sim_worker.hpp"
+
+namespace hapticloth::haptics {
+
+struct SessionConfig {
+  double haptic_rate = 1000.0;  ///< Hz
+  FingerParams finger;
+  CouplingParams coupling;
+  DeviceMapping mapping;
+  devices::GateConfig gate;
+  bool try_realtime = true;     ///< SCHED_FIFO + mlockall for the haptic thread if permitted
+};
+
+struct SessionReport {
+  LoopStats haptic;
+  Histogram sim_step_us;
+  std::uint64_t sim_steps = 0, contact_ticks = 0, slip_ticks = 0, narrow_phase_skipped = 0;
+  std::uint64_t device_errors = 0, candidate_overflows = 0;
+  double max_force = 0.0;          ///< N, largest force sent to a finger
+  double sim_time = 0.0;           ///< simulated seconds
+  bool realtime_scheduling = false;
+  bool memory_locked = false;
+  std::string scheduling_note;     ///< why real-time scheduling is on or off
+  std::uint64_t missed_deadlines() const { return haptic.missed_deadlines; }
+  std::string to_text() const;
+  std::string to_json() const;
+};
+
+class Session {
+ public:
+  /// The device must be configured; the session activates and deactivates it.
+  Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& cfg,
+          std::unique_ptr<cloth::LinearSolver> solver, const cloth::ClothState& start,
+          devices::DeviceHandle& device, const SessionConfig& sc);
+  ~Session();
+
+  /// Both loops in one thread on a simulated clock for `seconds`; the simulation steps every
+  /// `sim_period` (s, a multiple of the haptic period; 0 = the integrator's dt).
+  /// `on_tick` (optional) is called after every haptic tick.
+  template <class F>
+  void run_stepped(double seconds, double sim_period, F&& on_tick);
+  void run_stepped(double seconds, double sim_period = 0.0) {
+    run_stepped(seconds, sim_period, [](const HapticLoop&, const SimWorker&) {});
+  }
+  /// Real time for `seconds`: haptic thread at the haptic rate, simulation thread as fast as
+  /// its step allows, up to one step per integrator dt.
+  void run_realtime(double seconds);
+
+  SessionReport report() const;
+  HapticLoop& haptics() { return *loop_; }
+  SimWorker& sim() { return *sim_; }
+  devices::SafetyGate& gate() { return *gate_; }
+
+ private:
+  void start();
+  void stop();
+  void account_tick();
+
+  devices::DeviceHandle& dev_;
+  SessionConfig sc_;
+  double dt_sim_;
+  std::unique_ptr<devices::SafetyGate> gate_;
+  std::unique_ptr<TripleBuffer<ClothSnapshot>> snap_;
+  std::unique_ptr<TripleBuffer<HapticReport>> rep_;
+  std::unique_ptr<SimWorker> sim_;
+  std::unique_ptr<HapticLoop> loop_;
+  std::vector<std::array<int, 3>> tris_;
+  SessionReport r_;
+};
+
+template <class F>
+void Session::run_stepped(double seconds, double sim_period, F&& on_tick) {
+  start();
+  const double hp = 1.0 / sc_.haptic_rate;
+  const double sp = sim_period > 0.0 ? sim_period : dt_sim_;
+  const long every = std::max(1L, std::lround(sp / hp));
+  const long ticks = std::lround(seconds / hp);
+  for (long k = 0; k < ticks; ++k) {
+    const double now = k * hp;
+    if (k % every == 0) sim_->step(now);
+    loop_->tick(now);
+    account_tick();
+    on_tick(*loop_, *sim_);
+  }
+  r_.sim_time = ticks * hp;
+  stop();
+}
+
+}  // namespace hapticloth::haptics
