@@ -1,4 +1,5 @@
-// hapticloth-server: loads a scene and runs the cloth simulation.
+// hapticloth-server: loads a scene and runs the cloth simulation, headless or with a haptic
+// device (mock, udp, replay, ...) in the 1 kHz haptic loop.
 #include <cmath>
 #include <iostream>
 
@@ -6,23 +7,34 @@
 
 #include "app/run_summary.hpp"
 #include "app/scene_file.hpp"
+#include "app/serve.hpp"
 #include "app/toml_file.hpp"
+#include "registry.hpp"
 
 int main(int argc, char** argv) {
   using namespace hapticloth;
-  CLI::App cli{"hapticloth-server: cloth simulation server (HAPTEX model)"};
+  CLI::App cli{"hapticloth-server: cloth simulation and haptic rendering server (HAPTEX model)"};
   std::string scene_path;
   double duration = -1.0;
-  bool headless = false, json = false;
-  std::string solver;
+  bool headless = false, json = false, fast = false, no_rt = false;
+  std::string solver, device, script, record, replay, udp_bind;
   double dt = -1.0, alpha = -1.0;
+  std::string known;
+  for (const auto& n : devices::device_names()) known += (known.empty() ? "" : "|") + n;
   cli.add_option("--scene", scene_path, "scene file (TOML)")->required();
-  cli.add_option("--duration", duration, "simulated seconds (default: the scene's duration)");
+  cli.add_option("--duration", duration, "seconds to run (default: the scene's duration)");
   cli.add_flag("--headless", headless, "no device: step as fast as possible and print a summary");
   cli.add_flag("--json", json, "print the summary as one JSON object");
   cli.add_option("--solver", solver, "override the scene's solver (pcg, cholmod)");
   cli.add_option("--dt", dt, "override the scene's time step (s)");
   cli.add_option("--alpha", alpha, "override the scene's alpha in [0.5, 1]");
+  cli.add_option("--device", device, "haptic device driver (" + known + "); overrides [device] driver");
+  cli.add_option("--script", script, "mock: fingertip trajectory (.toml primitives or .csv time,finger,x,y,z)");
+  cli.add_option("--record", record, "mock/udp: write the device log (CSV) here");
+  cli.add_option("--replay", replay, "replay: the device log to play back");
+  cli.add_option("--udp-bind", udp_bind, "udp: HOST:PORT to receive state packets on (default 127.0.0.1:47800)");
+  cli.add_flag("--fast", fast, "stepped clock: run the haptic session as fast as possible");
+  cli.add_flag("--no-realtime", no_rt, "do not ask for SCHED_FIFO / mlockall");
   CLI11_PARSE(cli, argc, argv);
 
   try {
@@ -31,16 +43,32 @@ int main(int argc, char** argv) {
     if (dt > 0) scene.integrator.dt = dt;
     if (alpha > 0) scene.integrator.alpha = alpha;
     scene.integrator.validate();
-    if (duration <= 0) duration = scene.duration;
-    if (!headless) {
-      std::cerr << "hapticloth-server: no haptic device driver is configured; run with "
-                   "--headless to step the cloth without a device\n";
+    if (headless) {
+      if (duration <= 0) duration = scene.duration;
+      const long steps = std::lround(duration / scene.integrator.dt);
+      const app::RunSummary r = app::run_headless(scene, steps);
+      std::cout << (json ? r.to_json() + "\n" : r.to_text());
+      return r.finite ? 0 : 1;
+    }
+    if (!device.empty()) {
+      scene.device.driver = device;
+      scene.has_device = true;
+    }
+    if (!scene.has_device) {
+      std::cerr << "hapticloth-server: no device: give --device (" << known
+                << ") or a [device] table in the scene, or run --headless\n";
       return 2;
     }
-    const long steps = std::lround(duration / scene.integrator.dt);
-    const app::RunSummary r = app::run_headless(scene, steps);
-    std::cout << (json ? r.to_json() + "\n" : r.to_text());
-    return r.finite ? 0 : 1;
+    if (!script.empty()) scene.device.script = script;
+    if (!record.empty()) scene.device.record_path = record;
+    if (!replay.empty()) scene.device.replay_path = replay;
+    if (!udp_bind.empty()) scene.device.udp_bind = udp_bind;
+    if (no_rt) scene.haptics.try_realtime = false;
+    app::ServeOptions so;
+    so.duration = duration;
+    so.realtime = !fast;
+    so.json = json;
+    return app::serve(scene, so, std::cout);
   } catch (const app::ConfigError& e) {
     std::cerr << "hapticloth-server: " << e.what() << "\n";
     return 2;

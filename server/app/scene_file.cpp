@@ -4,6 +4,8 @@
 #include <cmath>
 #include <filesystem>
 #include <set>
+
+#include <Eigen/LU>
 #include <sstream>
 
 #include "app/material_file.hpp"
@@ -97,10 +99,98 @@ cloth::Mesh obj_mesh(const TomlFile& f, const toml::table& t) {
 
 }  // namespace
 
+namespace {
+
+Eigen::Vector3d vec3(const TomlFile& f, const toml::table& t, const std::string& prefix,
+                     const std::string& key, const Eigen::Vector3d& fallback) {
+  if (!t.get(key)) return fallback;
+  const auto v = f.numbers(t, prefix, key, 3, 3);
+  return {v[0], v[1], v[2]};
+}
+
+void load_device(const TomlFile& f, const toml::table& t, const std::string& path, Scene& s) {
+  f.only_keys(t, "device", {"driver", "fingers", "workspace_min", "workspace_max", "max_force",
+                            "max_stiffness", "rate", "script", "record", "replay", "udp_bind",
+                            "origin", "axes"});
+  auto& d = s.device;
+  s.has_device = true;
+  d.driver = f.string(t, "device", "driver");
+  d.fingers = static_cast<int>(f.integer(t, "device", "fingers", d.fingers));
+  if (d.fingers < 2 || d.fingers > devices::kMaxFingers)
+    f.fail(t.get("fingers"), "device.fingers", "must be 2 to 5");
+  d.workspace.min = vec3(f, t, "device", "workspace_min", d.workspace.min);
+  d.workspace.max = vec3(f, t, "device", "workspace_max", d.workspace.max);
+  if (!(d.workspace.max.array() > d.workspace.min.array()).all())
+    f.fail(t.get("workspace_max"), "device.workspace_max", "must exceed workspace_min on every axis");
+  d.max_force = f.number(t, "device", "max_force", d.max_force);
+  if (!(d.max_force > 0.0)) f.fail(t.get("max_force"), "device.max_force", "must be > 0 (N)");
+  d.max_stiffness = f.number(t, "device", "max_stiffness", d.max_stiffness);
+  if (!(d.max_stiffness > 0.0)) f.fail(t.get("max_stiffness"), "device.max_stiffness", "must be > 0 (N/m)");
+  d.rate = f.number(t, "device", "rate", d.rate);
+  if (!(d.rate > 0.0)) f.fail(t.get("rate"), "device.rate", "must be > 0 (Hz)");
+  if (t.get("script")) d.script = resolve(path, f.string(t, "device", "script"));
+  if (t.get("record")) d.record_path = resolve(path, f.string(t, "device", "record"));
+  if (t.get("replay")) d.replay_path = resolve(path, f.string(t, "device", "replay"));
+  d.udp_bind = f.string(t, "device", "udp_bind", d.udp_bind);
+  auto& m = s.haptics.mapping;
+  m.origin = vec3(f, t, "device", "origin", m.origin);
+  if (const toml::node* ax = t.get("axes")) {
+    const toml::array* rows = ax->as_array();
+    if (!rows || rows->size() != 3) f.fail(ax, "device.axes", "expected 3 rows [x, y, z]: the scene directions of the device axes");
+    Eigen::Matrix3d R;
+    for (int c = 0; c < 3; ++c) {
+      const toml::array* row = (*rows)[c].as_array();
+      if (!row || row->size() != 3) f.fail(ax, "device.axes", "each row must be [x, y, z]");
+      for (int k = 0; k < 3; ++k) {
+        const auto v = (*row)[k].value<double>();
+        if (!v) f.fail(ax, "device.axes", "expected numbers");
+        R(k, c) = *v;  // column c: scene direction of device axis c
+      }
+    }
+    if (!(R.transpose() * R).isIdentity(1e-6) || R.determinant() < 0.0)
+      f.fail(ax, "device.axes", "must be a rotation (orthonormal rows, right-handed)");
+    m.R = R;
+  }
+}
+
+void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
+  f.only_keys(t, "haptics", {"rate", "finger_radius", "stiffness", "damping", "friction",
+                             "kernel_radius", "margin", "preroll", "slew_rate", "watchdog_ms",
+                             "ramp_ms", "max_force", "realtime"});
+  auto& h = s.haptics;
+  auto positive = [&](const char* key, double& v, const char* unit) {
+    v = f.number(t, "haptics", key, v);
+    if (!(v > 0.0)) f.fail(t.get(key), std::string("haptics.") + key, std::string("must be > 0 (") + unit + ")");
+  };
+  auto non_negative = [&](const char* key, double& v, const char* unit) {
+    v = f.number(t, "haptics", key, v);
+    if (!(v >= 0.0)) f.fail(t.get(key), std::string("haptics.") + key, std::string("must be >= 0 (") + unit + ")");
+  };
+  positive("rate", h.haptic_rate, "Hz");
+  positive("finger_radius", h.finger.radius, "m");
+  positive("stiffness", h.finger.stiffness, "N/m");
+  non_negative("damping", h.finger.damping, "N s/m");
+  non_negative("friction", h.finger.friction, "Coulomb coefficient");
+  non_negative("kernel_radius", h.coupling.kernel_radius, "m; 0 = automatic");
+  non_negative("margin", h.coupling.margin, "m");
+  non_negative("preroll", s.preroll, "s");
+  positive("slew_rate", h.gate.slew_rate, "N/s");
+  double wd = h.gate.watchdog * 1e3, ramp = h.gate.ramp_time * 1e3;
+  positive("watchdog_ms", wd, "ms");
+  positive("ramp_ms", ramp, "ms");
+  h.gate.watchdog = wd * 1e-3;
+  h.gate.ramp_time = ramp * 1e-3;
+  non_negative("max_force", h.gate.max_force, "N; 0 = the device's");
+  h.try_realtime = f.boolean(t, "haptics", "realtime", h.try_realtime);
+}
+
+}  // namespace
+
 Scene load_scene(const std::string& path) {
   const TomlFile f = TomlFile::load(path);
   const toml::table& r = f.root();
-  f.only_keys(r, "", {"name", "material", "duration", "mesh", "pins", "physics", "integrator"});
+  f.only_keys(r, "", {"name", "material", "duration", "mesh", "pins", "physics", "integrator",
+                      "device", "haptics"});
   Scene s;
   s.path = path;
   s.name = f.string(r, "", "name", fs::path(path).stem().string());
@@ -198,6 +288,8 @@ Scene load_scene(const std::string& path) {
     if (!(c.explosion_ratio > 0.0))
       f.fail(it->get("explosion_ratio"), "integrator.explosion_ratio", "must be > 0");
   }
+  if (const toml::table* dt = f.table(r, "", "device", false)) load_device(f, *dt, path, s);
+  if (const toml::table* ht = f.table(r, "", "haptics", false)) load_haptics(f, *ht, s);
   return s;
 }
 

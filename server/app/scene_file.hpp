@@ -6,6 +6,8 @@
 #include <vector>
 
 #include "cloth/integrator.hpp"
+#include "hal/options.hpp"
+#include "haptics/session.hpp"
 #include "cloth/mesh.hpp"
 #include "cloth/solver.hpp"
 
@@ -22,6 +24,13 @@ struct Scene {
   std::string solver = "pcg";
   cloth::PcgOptions pcg;
   double duration = 10.0;  ///< s, default run length of the main job
+
+  /// [device]: the haptic device (driver chosen by name; see devices/registry.hpp).
+  bool has_device = false;
+  devices::DeviceOptions device;
+  /// [haptics]: the 1 kHz loop, fingertips, coupling and safety gate.
+  haptics::SessionConfig haptics;
+  double preroll = 0.0;  ///< s simulated (as fast as possible) before the device session starts
 };
 
 /// Loads a scene; relative paths inside it are resolved against the scene file's folder.

@@ -34,6 +34,7 @@ struct ClothModel {
   int num_vertices() const { return static_cast<int>(rest_positions.size()); }
   int num_free() const { return static_cast<int>(free_vertices.size()); }
   int num_triangles() const { return static_cast<int>(elements.size()); }
+  int pins_count() const { return num_vertices() - num_free(); }
 };
 
 /// Builds the model: eq. 2 for every triangle, lumped masses, pins and the sparsity pattern.

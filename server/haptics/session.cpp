@@ -99,6 +99,7 @@ void Session::run_realtime(double seconds) {
     while (!stop_flag.load(std::memory_order_relaxed)) {
       const double now = mono_now() - t_start;
       sim_->step(now);
+      for (auto* o : observers_) o->on_sim_step(sim_->last_snapshot());
       next += dt_sim_;
       const double t = mono_now();
       if (next > t) {
@@ -124,12 +125,19 @@ void Session::run_realtime(double seconds) {
     const long ticks = std::lround(seconds * sc_.haptic_rate);
     for (long k = 0; k < ticks; ++k) {
       const double deadline = t_start + k * period;
-      const timespec ts = to_timespec(deadline);
+      // Sleep to just before the deadline, then spin the rest: the kernel's wake-up is late by
+      // tens of microseconds (more on a virtual machine); the spin costs spin_lead of CPU per tick.
+      const timespec ts = to_timespec(deadline - sc_.spin_lead);
       clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
-      const double woke = mono_now();
+      double woke = mono_now();
+      while (woke < deadline) woke = mono_now();
       r_.haptic.period_error_us.add(std::abs(woke - deadline) * 1e6);
       loop_->tick(woke - t_start);
       account_tick();
+      for (auto* o : observers_)
+        o->on_haptic_tick(loop_->last_report(), loop_->device_state(), loop_->last_command());
+      if (k % 1000 == 999)
+        for (auto* o : observers_) o->on_loop_stats(r_.haptic);
       const double done = mono_now();
       r_.haptic.compute_us.add((done - woke) * 1e6);
       ++r_.haptic.ticks;

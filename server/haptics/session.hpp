@@ -6,6 +6,8 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
+#include <cmath>
 #include <memory>
 #include <string>
 
@@ -13,6 +15,7 @@
 #include "hal/handle.hpp"
 #include "hal/safety_gate.hpp"
 #include "haptics/haptic_loop.hpp"
+#include "haptics/observer.hpp"
 #include "haptics/sim_worker.hpp"
 
 namespace hapticloth::haptics {
@@ -24,6 +27,7 @@ struct SessionConfig {
   DeviceMapping mapping;
   devices::GateConfig gate;
   bool try_realtime = true;     ///< SCHED_FIFO + mlockall for the haptic thread if permitted
+  double spin_lead = 150e-6;    ///< s: the haptic thread sleeps to this before each deadline, then spins
 };
 
 struct SessionReport {
@@ -61,6 +65,9 @@ class Session {
   /// its step allows, up to one step per integrator dt.
   void run_realtime(double seconds);
 
+  /// Observers are called on the loops' threads (see SessionObserver); add before running.
+  void add_observer(SessionObserver* o) { observers_.push_back(o); }
+
   SessionReport report() const;
   HapticLoop& haptics() { return *loop_; }
   SimWorker& sim() { return *sim_; }
@@ -80,21 +87,32 @@ class Session {
   std::unique_ptr<SimWorker> sim_;
   std::unique_ptr<HapticLoop> loop_;
   std::vector<std::array<int, 3>> tris_;
+  std::vector<SessionObserver*> observers_;
   SessionReport r_;
 };
 
 template <class F>
 void Session::run_stepped(double seconds, double sim_period, F&& on_tick) {
   start();
+  r_.scheduling_note = "stepped clock (no real-time scheduling)";
   const double hp = 1.0 / sc_.haptic_rate;
   const double sp = sim_period > 0.0 ? sim_period : dt_sim_;
   const long every = std::max(1L, std::lround(sp / hp));
   const long ticks = std::lround(seconds / hp);
   for (long k = 0; k < ticks; ++k) {
     const double now = k * hp;
-    if (k % every == 0) sim_->step(now);
+    if (k % every == 0) {
+      sim_->step(now);
+      for (auto* o : observers_) o->on_sim_step(sim_->last_snapshot());
+    }
+    const auto t0 = std::chrono::steady_clock::now();
     loop_->tick(now);
+    r_.haptic.compute_us.add(
+        std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+    ++r_.haptic.ticks;
     account_tick();
+    for (auto* o : observers_)
+      o->on_haptic_tick(loop_->last_report(), loop_->device_state(), loop_->last_command());
     on_tick(*loop_, *sim_);
   }
   r_.sim_time = ticks * hp;

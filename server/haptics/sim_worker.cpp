@@ -41,6 +41,7 @@ SimWorker::SimWorker(const cloth::ClothModel& model, const cloth::IntegratorConf
   kernel_r_ = cp_.kernel_radius > 0.0 ? cp_.kernel_radius : std::max(fp_.radius, 2.0 * edge);
   normals_.assign(model_.num_vertices(), Vec3::UnitZ());
   w_.assign(model_.num_vertices(), 0.0);
+  mine_.resize(model_.num_vertices());
 }
 
 void SimWorker::vertex_normals() {
@@ -131,6 +132,7 @@ void SimWorker::publish(double now) {
   std::copy(s_.x.begin(), s_.x.end(), snap.x.begin());
   std::copy(s_.v.begin(), s_.v.end(), snap.v.begin());
   std::copy(normals_.begin(), normals_.end(), snap.n.begin());
+  mine_.assign(snap);
   out_.publish();
 }
 

@@ -37,6 +37,8 @@ class SimWorker {
   void publish(double now);
 
   const cloth::ClothState& state() const { return s_; }
+  /// The snapshot published by the last step (the sim thread's own copy).
+  const ClothSnapshot& last_snapshot() const { return mine_; }
   cloth::ClothState& state_mut() { return s_; }
   const cloth::Integrator& integrator() const { return integ_; }
   double kernel_radius() const { return kernel_r_; }
@@ -63,6 +65,7 @@ class SimWorker {
   std::vector<std::array<int, 3>> tris_;
   std::vector<Vec3> normals_;
   std::vector<double> w_;
+  ClothSnapshot mine_;
   Vec3 applied_ = Vec3::Zero();
   Histogram step_us_;
   std::uint64_t steps_ = 0;

@@ -1,0 +1,116 @@
+#include "app/serve.hpp"
+
+#include "app/toml_file.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "hal/handle.hpp"
+#include "haptics/session.hpp"
+#include "registry.hpp"
+
+namespace hapticloth::app {
+
+namespace {
+
+// What the scene needs, and why (issue: skip what the scene doesn't need).
+std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, double step_ms,
+                                double haptic_period_ms) {
+  std::vector<std::string> s;
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(3);
+  if (step_ms <= haptic_period_ms) {
+    os << "direct coupling: the global step takes " << step_ms << " ms (median at start-up), within the "
+       << haptic_period_ms << " ms haptic period, so the haptic loop uses the whole cloth";
+  } else {
+    os << "global step " << step_ms << " ms > haptic period " << haptic_period_ms
+       << " ms: the haptic loop extrapolates the cloth at constant velocity between global steps";
+  }
+  s.push_back(os.str());
+  s.push_back(sc.material.viscous() ? "strain-rate (viscous) terms on: the material has viscosity"
+                                    : "strain-rate terms off: the material has no viscosity");
+  s.push_back(m.pins_count() > 0 ? "pinned vertices: " + std::to_string(m.pins_count()) + " move kinematically"
+                                 : "no pins: no constraint work");
+  s.push_back("narrow phase only on ticks where a fingertip is within the broad-phase margin of the cloth");
+  return s;
+}
+
+}  // namespace
+
+int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
+  const cloth::ClothModel model = build_model(scene);
+  const double duration = opt.duration > 0.0 ? opt.duration : scene.duration;
+
+  // Settle (preroll) as fast as possible, and measure the global step.
+  cloth::ClothState state = cloth::rest_state(model);
+  std::vector<double> step_ms;
+  {
+    auto integ = make_integrator(scene, model);
+    const long n = std::max(20L, std::lround(scene.preroll / scene.integrator.dt));
+    for (long k = 0; k < n; ++k) {
+      integ->step(state);
+      step_ms.push_back(integ->last_timing().total_ms);
+    }
+    state.time = 0.0;
+  }
+  std::sort(step_ms.begin(), step_ms.end());
+  const double median_ms = step_ms[step_ms.size() / 2];
+
+  devices::DeviceHandle dev(devices::make_device(scene.device));
+  if (const std::string e = dev.configure(); !e.empty()) throw ConfigError("device: " + e);
+
+  haptics::SessionConfig sc = scene.haptics;
+  haptics::Session session(model, scene.integrator, cloth::make_solver(scene.solver, scene.pcg),
+                           state, dev, sc);
+  const auto st = stages(scene, model, median_ms, 1000.0 / sc.haptic_rate);
+
+  // --- transport (publishers are added here as session observers)
+
+  if (!opt.json) {
+    out << "scene            " << scene.name << " (" << model.num_triangles() << " triangles)\n";
+    out << "device           " << dev.info().name << ", " << dev.info().fingers << " fingers, max "
+        << dev.info().max_force << " N\n";
+    out << "clock            " << (opt.realtime ? "real time" : "stepped (as fast as possible)")
+        << ", " << duration << " s after " << scene.preroll << " s preroll\n";
+    for (const auto& s : st) out << "stage            " << s << "\n";
+    out.flush();
+  }
+  if (opt.realtime) session.run_realtime(duration);
+  else session.run_stepped(duration);
+
+  const haptics::SessionReport r = session.report();
+  const auto& dc = dev.device().counters();
+  const auto& gc = session.gate().counters();
+  const auto& ev = session.sim().integrator().events();
+  if (opt.json) {
+    nlohmann::json j = nlohmann::json::parse(r.to_json());
+    j["scene"] = scene.name;
+    j["device"] = dev.info().name;
+    j["stages"] = st;
+    j["device_counters"] = {{"samples", dc.samples}, {"dropped", dc.dropped_total()},
+                            {"send_errors", dc.send_errors}};
+    j["gate"] = {{"non_finite", gc.non_finite}, {"clamped", gc.clamped},
+                 {"slew_limited", gc.slew_limited}, {"stale_events", gc.stale_events}};
+    j["integrator_events"] = ev.total();
+    out << j.dump() << "\n";
+  } else {
+    out << r.to_text();
+    out << "device counters  samples " << dc.samples << ", dropped " << dc.dropped_total()
+        << " (malformed " << dc.dropped_malformed << ", version " << dc.dropped_version
+        << ", duplicate " << dc.dropped_duplicate << ", reordered " << dc.dropped_reordered
+        << ", out of range " << dc.dropped_out_of_range << ")\n";
+    out << "safety gate      non-finite " << gc.non_finite << ", clamped " << gc.clamped
+        << ", slew-limited " << gc.slew_limited << ", stale events " << gc.stale_events << "\n";
+    out << "cloth events     " << ev.total() << "\n";
+  }
+  return dev.state() == devices::Lifecycle::Failed ? 1 : 0;
+}
+
+}  // namespace hapticloth::app

@@ -1,0 +1,22 @@
+// Running a scene with a haptic device: the global simulation and the 1 kHz haptic loop.
+#pragma once
+
+#include <iosfwd>
+#include <string>
+
+#include "app/scene_file.hpp"
+
+namespace hapticloth::app {
+
+struct ServeOptions {
+  double duration = -1.0;  ///< s; < 0: the scene's duration
+  bool realtime = true;    ///< false: stepped clock, as fast as possible (tests, replays)
+  bool json = false;
+};
+
+/// Settles the scene for its preroll, starts the device and the session, runs, and prints what
+/// it did (stages on and why, loop statistics, contacts, device and gate counters).
+/// Returns 0, or 1 if the device failed. Throws ConfigError / std::runtime_error on bad set-up.
+int serve(Scene scene, const ServeOptions& opt, std::ostream& out);
+
+}  // namespace hapticloth::app

@@ -1,0 +1,24 @@
+// Observers of a running session (publishers, loggers). Called on the loops' own threads, so an
+// observer must return quickly, never block and never allocate in on_haptic_tick (it runs on
+// the 1 kHz path): copy into a preallocated mailbox and let its own thread do the rest.
+#pragma once
+
+#include "hal/device.hpp"
+#include "haptics/handoff.hpp"
+#include "haptics/stats.hpp"
+
+namespace hapticloth::haptics {
+
+class SessionObserver {
+ public:
+  virtual ~SessionObserver() = default;
+  /// Simulation thread, after every global step (the snapshot the haptic loop will see).
+  virtual void on_sim_step(const ClothSnapshot&) noexcept {}
+  /// Haptic thread, after every tick: the contacts, the raw device state and the gated command.
+  virtual void on_haptic_tick(const HapticReport&, const devices::DeviceState&,
+                              const devices::DeviceCommand&) noexcept {}
+  /// Haptic thread, about once a second: the loop statistics so far.
+  virtual void on_loop_stats(const LoopStats&) noexcept {}
+};
+
+}  // namespace hapticloth::haptics

@@ -1,0 +1,22 @@
+// Configuration of the state transports (zenoh and LCM), from the command line and the scene's
+// [transport] table.
+#pragma once
+
+#include <string>
+
+namespace hapticloth::transport {
+
+struct TransportOptions {
+  std::string server_name = "default";  ///< key expressions hapticloth/<server_name>/...
+  bool zenoh = true;                    ///< publish over zenoh
+  /// zenoh JSON5 config file; empty: peer mode, listen tcp/127.0.0.1:7447, no scouting.
+  std::string zenoh_config;
+  std::string zenoh_listen = "tcp/127.0.0.1:7447";
+  std::string lcm_url;                  ///< extra LCM provider URL (udpm only inside a netns)
+  std::string lcm_log;                  ///< file:// log path; empty: none
+  double cloth_rate = 60.0;             ///< Hz, cloth state messages
+  double haptic_batch = 0.01;           ///< s, haptic samples per message (1 kHz batched)
+  double max_command_speed = 1.0;       ///< m/s, fastest fingertip a trajectory command may ask
+};
+
+}  // namespace hapticloth::transport
