@@ -8,6 +8,9 @@
 #ifdef HAPTICLOTH_HAVE_UDP
 #include "udp/udp_device.hpp"
 #endif
+#ifdef HAPTICLOTH_HAVE_REMOTE
+#include "remote/remote_device.hpp"
+#endif
 
 namespace hapticloth::devices {
 
@@ -18,6 +21,9 @@ const std::map<std::string, DeviceFactory>& registry() {
       {"replay", make_replay_device},
 #ifdef HAPTICLOTH_HAVE_UDP
       {"udp", make_udp_device},
+#endif
+#ifdef HAPTICLOTH_HAVE_REMOTE
+      {"remote", make_remote_device},
 #endif
   };
   return r;
