@@ -35,6 +35,18 @@ int main(int argc, char** argv) {
   cli.add_option("--udp-bind", udp_bind, "udp: HOST:PORT to receive state packets on (default 127.0.0.1:47800)");
   cli.add_flag("--fast", fast, "stepped clock: run the haptic session as fast as possible");
   cli.add_flag("--no-realtime", no_rt, "do not ask for SCHED_FIFO / mlockall");
+  // --- transport
+  transport::TransportOptions tr;
+  bool no_zenoh = false;
+  cli.add_option("--name", tr.server_name, "server name: key expressions hapticloth/<name>/... (default: default)");
+  auto* zc = cli.add_option("--zenoh-config", tr.zenoh_config, "zenoh JSON5 config file (default: peer, listen tcp/127.0.0.1:7447, no scouting)");
+  auto* zl = cli.add_option("--zenoh-listen", tr.zenoh_listen, "zenoh endpoint to listen on without a config file (default tcp/127.0.0.1:7447)");
+  cli.add_flag("--no-zenoh", no_zenoh, "do not publish over zenoh");
+  cli.add_option("--lcm-url", tr.lcm_url, "also publish on this LCM provider (e.g. udpm://239.255.76.67:7667?ttl=0)");
+  cli.add_option("--lcm-log", tr.lcm_log, "write an LCM log of the run (every message) to this file");
+  cli.add_option("--cloth-rate", tr.cloth_rate, "Hz, cloth state messages (default 60)");
+  cli.add_option("--max-command-speed", tr.max_command_speed, "m/s, fastest injected fingertip trajectory (default 1)");
+  // --- end transport
   CLI11_PARSE(cli, argc, argv);
 
   try {
@@ -68,6 +80,9 @@ int main(int argc, char** argv) {
     so.duration = duration;
     so.realtime = !fast;
     so.json = json;
+    tr.zenoh = !no_zenoh;  // --- transport
+    so.transport = tr;
+    so.transport_required = zc->count() > 0 || zl->count() > 0;
     return app::serve(scene, so, std::cout);
   } catch (const app::ConfigError& e) {
     std::cerr << "hapticloth-server: " << e.what() << "\n";

@@ -15,6 +15,8 @@
 #include "hal/handle.hpp"
 #include "haptics/session.hpp"
 #include "registry.hpp"
+#include "remote/command_sink.hpp"
+#include "transport/hub.hpp"
 
 namespace hapticloth::app {
 
@@ -71,7 +73,38 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
                            state, dev, sc);
   const auto st = stages(scene, model, median_ms, 1000.0 / sc.haptic_rate);
 
-  // --- transport (publishers are added here as session observers)
+  // --- transport: the Hub publishes the session over zenoh / LCM and feeds the remote device
+  std::unique_ptr<transport::Hub> hub;
+  {
+    transport::SceneInfo info;
+    transport::set_cloth(info, scene.mesh, scene.material);
+    info.scene_name = scene.name;
+    info.device = dev.info();
+    info.device_rotation = sc.mapping.R;
+    info.device_origin = sc.mapping.origin;
+    info.haptic_rate = sc.haptic_rate;
+    transport::TransportOptions to = opt.transport;
+    try {
+      hub = transport::make_hub(to, info);
+    } catch (const std::runtime_error& e) {
+      if (opt.transport_required || !to.zenoh) throw;
+      std::cerr << "hapticloth-server: " << e.what() << "; running without zenoh\n";
+      to.zenoh = false;
+      hub = transport::make_hub(to, info);
+    }
+    if (auto* sink = dynamic_cast<devices::RemoteCommandSink*>(&dev.device())) hub->set_command_sink(sink);
+    session.add_observer(hub.get());
+    hub->post_event("started", "scene " + scene.name + ", device " + dev.info().name);
+    if (!opt.json) {
+      const auto& o = hub->options();
+      out << "transport        zenoh " << (o.zenoh && to.zenoh ? "hapticloth/" + o.server_name + "/* on " +
+                                                   (o.zenoh_config.empty() ? o.zenoh_listen : o.zenoh_config)
+                                                : std::string("off"))
+          << ", LCM " << (o.lcm_url.empty() ? "off" : o.lcm_url) << ", log "
+          << (o.lcm_log.empty() ? "off" : o.lcm_log) << "\n";
+    }
+  }
+  // --- end transport
 
   if (!opt.json) {
     out << "scene            " << scene.name << " (" << model.num_triangles() << " triangles)\n";

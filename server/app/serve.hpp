@@ -5,6 +5,7 @@
 #include <string>
 
 #include "app/scene_file.hpp"
+#include "transport/options.hpp"
 
 namespace hapticloth::app {
 
@@ -12,6 +13,10 @@ struct ServeOptions {
   double duration = -1.0;  ///< s; < 0: the scene's duration
   bool realtime = true;    ///< false: stepped clock, as fast as possible (tests, replays)
   bool json = false;
+  /// State over zenoh / LCM (server/transport). A zenoh endpoint that cannot be opened is
+  /// fatal if transport_required, else the server runs without zenoh and says so.
+  transport::TransportOptions transport;
+  bool transport_required = false;
 };
 
 /// Settles the scene for its preroll, starts the device and the session, runs, and prints what

@@ -127,6 +127,7 @@ Hub::Hub(const TransportOptions& opt, SceneInfo scene)
 Hub::~Hub() {
   zcmd_.reset();    // no command callback runs after this
   zscene_.reset();
+  post_event("stopped", "server " + opt_.server_name + " stops publishing");
   {
     std::lock_guard<std::mutex> lock(run_mu_);
     stop_ = true;
