@@ -20,6 +20,8 @@ struct KesOptions {
   double max_shear_deg = 8.0;   ///< shear: sweep -max..+max degrees (KES-F: 8)
   double lateral_tension = 9.80665;  ///< shear: N/m held across the specimen (KES-F: 10 gf/cm)
   int cells_per_cm = 2;         ///< mesh resolution of the specimen
+  bool free_edges = false;      ///< shear: leave the side edges free (as on the tester) instead
+                                ///< of guiding them along the affine shear
 };
 
 /// One equilibrium state of the test.

@@ -45,6 +45,7 @@ int main(int argc, char** argv) {
   cli.add_option("--max-strain", opt.max_strain, "tensile: largest strain (default: the law's max_strain)");
   cli.add_option("--max-shear-deg", opt.max_shear_deg, "shear: sweep to +- this angle (default 8)");
   cli.add_option("--tension", opt.lateral_tension, "shear: lateral tension, N/m (default 9.81 = 10 gf/cm)");
+  cli.add_flag("--free-edges", opt.free_edges, "shear: free side edges, as on the tester (see README)");
   CLI11_PARSE(cli, argc, argv);
 
   app::KesTest test;

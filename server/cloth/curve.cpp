@@ -6,47 +6,9 @@
 
 namespace hapticloth::cloth {
 
-namespace {
-
-// sigma and its tangent for eps >= 0 (the spline proper).
-inline void spline_positive(const StrainStressCurve& c, double e, double& s, double& ds) {
-  const auto& b0 = c.B[0];
-  s = b0[0] + e * (b0[1] + e * (b0[2] + e * b0[3]));
-  ds = b0[1] + e * (2.0 * b0[2] + 3.0 * e * b0[3]);
-  for (int i = 1; i < c.segments; ++i) {
-    const double d = e - c.knots[i];
-    if (d <= 0.0) break;  // knots increase: no later segment is active either
-    const auto& bi = c.B[i];
-    s += d * d * (bi[2] + d * bi[3]);
-    ds += d * (2.0 * bi[2] + 3.0 * d * bi[3]);
-  }
-}
-
-inline double energy_positive(const StrainStressCurve& c, double e) {
-  const auto& b0 = c.B[0];
-  double psi = e * (b0[0] + e * (b0[1] / 2.0 + e * (b0[2] / 3.0 + e * b0[3] / 4.0)));
-  for (int i = 1; i < c.segments; ++i) {
-    const double d = e - c.knots[i];
-    if (d <= 0.0) break;
-    const auto& bi = c.B[i];
-    psi += d * d * d * (bi[2] / 3.0 + d * bi[3] / 4.0);
-  }
-  return psi;
-}
-
-}  // namespace
-
 void StrainStressCurve::evaluate(double eps, double& sigma, double& dsigma) const {
-  if (eps >= 0.0) {
-    spline_positive(*this, eps, sigma, dsigma);
-  } else if (odd) {
-    spline_positive(*this, -eps, sigma, dsigma);
-    sigma = -sigma;  // odd function: the tangent is even
-  } else {
-    const double k = compression_scale * B[0][1];
-    sigma = B[0][0] + k * eps;
-    dsigma = k;
-  }
+  double psi;
+  evaluate_all(eps, psi, sigma, dsigma);
 }
 
 double StrainStressCurve::stress(double eps) const {
@@ -62,10 +24,9 @@ double StrainStressCurve::stiffness(double eps) const {
 }
 
 double StrainStressCurve::energy(double eps) const {
-  if (eps >= 0.0) return energy_positive(*this, eps);
-  if (odd) return energy_positive(*this, -eps);
-  const double k = compression_scale * B[0][1];
-  return eps * (B[0][0] + 0.5 * k * eps);
+  double psi, sg, ds;
+  evaluate_all(eps, psi, sg, ds);
+  return psi;
 }
 
 void StrainStressCurve::validate(const std::string& what, double max_strain) const {

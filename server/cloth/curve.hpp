@@ -24,7 +24,10 @@ struct StrainStressCurve {
   bool odd = false;                       ///< shear curves are odd functions of strain
   double compression_scale = 1.0;         ///< slope factor for eps < 0 (tensile curves)
   double viscosity = 0.0;                 ///< linear viscosity eta, sigma_v = eta * eps' (N s/m)
-  double max_strain = 0.3;                ///< largest strain the law was fitted/validated for
+  /// Largest strain the law was fitted and validated for. Beyond it (|eps| > max_strain) the
+  /// law continues linearly with its tangent there (C1), so that a cubic fitted to data never
+  /// turns down outside the data.
+  double max_strain = 0.3;
 
   /// Stress sigma(eps) in N/m.
   double stress(double eps) const;
@@ -34,6 +37,8 @@ struct StrainStressCurve {
   void evaluate(double eps, double& sigma, double& dsigma) const;
   /// Strain energy density Psi(eps) = integral_0^eps sigma, in J/m^2 (Psi' = sigma).
   double energy(double eps) const;
+  /// Psi, sigma and d sigma / d eps in one pass (inline: the assembly calls it per element).
+  inline void evaluate_all(double eps, double& psi, double& sigma, double& dsigma) const;
 
   /// Throws std::invalid_argument naming `what` if the curve breaks an invariant
   /// (knot order, C1 constraints, non-finite values, odd curve with B_00 != 0,
@@ -43,5 +48,49 @@ struct StrainStressCurve {
   /// Linear law sigma = k eps (used by tests and simple scenes).
   static StrainStressCurve linear(double k, bool odd = false);
 };
+
+namespace detail {
+// The spline proper for e >= 0 (appendix A.2): Psi, sigma, d sigma / d eps.
+inline void spline_all(const StrainStressCurve& c, double e, double& psi, double& s, double& ds) {
+  const auto& b0 = c.B[0];
+  s = b0[0] + e * (b0[1] + e * (b0[2] + e * b0[3]));
+  ds = b0[1] + e * (2.0 * b0[2] + 3.0 * e * b0[3]);
+  psi = e * (b0[0] + e * (0.5 * b0[1] + e * (b0[2] * (1.0 / 3.0) + 0.25 * e * b0[3])));
+  for (int i = 1; i < c.segments; ++i) {
+    const double d = e - c.knots[i];
+    if (d <= 0.0) break;  // knots increase: no later segment is active either
+    const auto& bi = c.B[i];
+    s += d * d * (bi[2] + d * bi[3]);
+    ds += d * (2.0 * bi[2] + 3.0 * d * bi[3]);
+    psi += d * d * d * (bi[2] * (1.0 / 3.0) + 0.25 * d * bi[3]);
+  }
+}
+}  // namespace detail
+
+inline void StrainStressCurve::evaluate_all(double eps, double& psi, double& s, double& ds) const {
+  double e = eps, sign = 1.0;
+  if (eps < 0.0) {
+    if (!odd) {  // tensile law below zero strain: linear, the "A eps" term, scaled
+      const double k = compression_scale * B[0][1];
+      s = B[0][0] + k * eps;
+      ds = k;
+      psi = eps * (B[0][0] + 0.5 * k * eps);
+      return;
+    }
+    e = -eps;
+    sign = -1.0;
+  }
+  if (e <= max_strain) {
+    detail::spline_all(*this, e, psi, s, ds);
+  } else {  // linear continuation beyond the validated range (C1)
+    double pm, sm, km;
+    detail::spline_all(*this, max_strain, pm, sm, km);
+    const double d = e - max_strain;
+    s = sm + km * d;
+    ds = km;
+    psi = pm + d * (sm + 0.5 * km * d);
+  }
+  s *= sign;  // odd law: the tangent and the energy are even
+}
 
 }  // namespace hapticloth::cloth

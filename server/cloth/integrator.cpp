@@ -16,38 +16,6 @@ double ms_since(Clock::time_point t0) {
 
 constexpr double kInvSqrt2 = 0.70710678118654752440;
 
-// Psi, sigma and d sigma / d eps of one curve in one pass (the same law as
-// StrainStressCurve::evaluate and ::energy, which the element tests check; inlined here because
-// the assembly calls it three times per element).
-inline __attribute__((always_inline)) void curve_all(const StrainStressCurve& c, double eps,
-                                                     double& psi, double& s, double& ds) {
-  double e = eps, sign = 1.0;
-  if (eps < 0.0) {
-    if (!c.odd) {
-      const double k = c.compression_scale * c.B[0][1];
-      s = c.B[0][0] + k * eps;
-      ds = k;
-      psi = eps * (c.B[0][0] + 0.5 * k * eps);
-      return;
-    }
-    e = -eps;
-    sign = -1.0;
-  }
-  const auto& b0 = c.B[0];
-  s = b0[0] + e * (b0[1] + e * (b0[2] + e * b0[3]));
-  ds = b0[1] + e * (2.0 * b0[2] + 3.0 * e * b0[3]);
-  psi = e * (b0[0] + e * (0.5 * b0[1] + e * (b0[2] * (1.0 / 3.0) + 0.25 * e * b0[3])));
-  for (int i = 1; i < c.segments; ++i) {
-    const double d = e - c.knots[i];
-    if (d <= 0.0) break;
-    const auto& bi = c.B[i];
-    s += d * d * (bi[2] + d * bi[3]);
-    ds += d * (2.0 * bi[2] + 3.0 * d * bi[3]);
-    psi += d * d * d * (bi[2] * (1.0 / 3.0) + 0.25 * d * bi[3]);
-  }
-  s *= sign;  // odd law: the tangent and the energy are even
-}
-
 // Symmetric 3x3 as (xx, yy, zz, xy, xz, yz).
 struct Sym3 {
   double m[6];
@@ -128,9 +96,9 @@ double Integrator::assemble_elements(const ClothState& s, double h) {
     // Eq. 4 strains through the material laws.
     const double e_uu = qu - 1.0, e_vv = qv - 1.0, e_uv = (qs - qd) * kInvSqrt2;
     double p_uu, s_uu, k_uu, p_vv, s_vv, k_vv, p_uv, s_uv, k_uv;
-    curve_all(mat.weft, e_uu, p_uu, s_uu, k_uu);
-    curve_all(mat.warp, e_vv, p_vv, s_vv, k_vv);
-    curve_all(mat.shear, e_uv, p_uv, s_uv, k_uv);
+    mat.weft.evaluate_all(e_uu, p_uu, s_uu, k_uu);
+    mat.warp.evaluate_all(e_vv, p_vv, s_vv, k_vv);
+    mat.shear.evaluate_all(e_uv, p_uv, s_uv, k_uv);
     e_el += A * (p_uu + p_vv + p_uv);
     // Eq. 6 strain rates and viscous stresses.
     double r_uu = 0.0, r_vv = 0.0, r_uv = 0.0;

@@ -122,3 +122,40 @@ TEST(Curve, EvaluationAllocatesNothing) {
   EXPECT_EQ(guard.count(), 0u);
   EXPECT_TRUE(std::isfinite(acc));
 }
+
+// Beyond max_strain the law continues linearly with its tangent there (C1), so a cubic fitted
+// to data that would turn down outside the data stays monotone; energy stays consistent.
+TEST(Curve, LinearContinuationBeyondMaxStrain) {
+  namespace cloth = hapticloth::cloth;
+  cloth::StrainStressCurve c;
+  c.segments = 2;
+  c.knots = {0.0, 0.07, 0.0};
+  c.B[0] = {0.0, 3981.5, 8727.7, -15783.8};
+  c.B[1] = {0.0, 0.0, 31219.5, -822659.4};  // turns down past ~0.1 if extended as a cubic
+  c.max_strain = 0.1;
+  double s_m, k_m;
+  c.evaluate(0.1, s_m, k_m);
+  EXPECT_GT(k_m, 0.0);
+  for (double e : {0.12, 0.2, 0.5}) {
+    double s, k;
+    c.evaluate(e, s, k);
+    EXPECT_NEAR(s, s_m + k_m * (e - 0.1), 1e-9 * s);
+    EXPECT_DOUBLE_EQ(k, k_m);
+    // Psi' = sigma across the junction, by central differences
+    const double h = 1e-6;
+    EXPECT_NEAR((c.energy(e + h) - c.energy(e - h)) / (2 * h), s, 1e-6 * s);
+  }
+  // continuity at max_strain
+  double s1, k1;
+  c.evaluate(0.1 + 1e-12, s1, k1);
+  EXPECT_NEAR(s1, s_m, 1e-6);
+  EXPECT_NEAR(k1, k_m, 1e-3);
+  // odd laws continue on both sides
+  c.odd = true;
+  c.B[0][0] = 0.0;
+  double sp, sn, kp, kn;
+  c.evaluate(0.3, sp, kp);
+  c.evaluate(-0.3, sn, kn);
+  EXPECT_DOUBLE_EQ(sp, -sn);
+  EXPECT_DOUBLE_EQ(kp, kn);
+}
