@@ -50,6 +50,10 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   const cloth::ClothModel model = build_model(scene);
   const double duration = opt.duration > 0.0 ? opt.duration : scene.duration;
 
+  // The device first (a UDP rig can start streaming while the cloth settles).
+  devices::DeviceHandle dev(devices::make_device(scene.device));
+  if (const std::string e = dev.configure(); !e.empty()) throw ConfigError("device: " + e);
+
   // Settle (preroll) as fast as possible, and measure the global step.
   cloth::ClothState state = cloth::rest_state(model);
   std::vector<double> step_ms;
@@ -64,9 +68,6 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   }
   std::sort(step_ms.begin(), step_ms.end());
   const double median_ms = step_ms[step_ms.size() / 2];
-
-  devices::DeviceHandle dev(devices::make_device(scene.device));
-  if (const std::string e = dev.configure(); !e.empty()) throw ConfigError("device: " + e);
 
   haptics::SessionConfig sc = scene.haptics;
   haptics::Session session(model, scene.integrator, cloth::make_solver(scene.solver, scene.pcg),

@@ -175,6 +175,8 @@ int main(int argc, char** argv) {
   app.add_option("--lead-us", cfg.lead_us, "us the rig sends before each server tick")
       ->check(CLI::Range(0.0, 1e6));
   app.add_option("--fingers", cfg.fingers, "fingers per packet")->check(CLI::Range(1, kMaxFingers));
+  bool json_flag = true;
+  app.add_flag("--json", json_flag, "JSON output (the only format; accepted for uniformity)");
   app.add_flag("--fifo", cfg.fifo, "run both loops SCHED_FIFO (needs the privilege)");
   CLI11_PARSE(app, argc, argv);
 
