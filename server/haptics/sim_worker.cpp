@@ -42,6 +42,7 @@ SimWorker::SimWorker(const cloth::ClothModel& model, const cloth::IntegratorConf
   normals_.assign(model_.num_vertices(), Vec3::UnitZ());
   w_.assign(model_.num_vertices(), 0.0);
   mine_.resize(model_.num_vertices());
+  x_refit_ = start.x;
 }
 
 void SimWorker::vertex_normals() {
@@ -108,15 +109,44 @@ void SimWorker::apply_contacts() {
 }
 
 void SimWorker::find_candidates() {
-  bp_.refit(s_.x);
   ClothSnapshot& snap = out_.back();
   in_.acquire();
   const HapticReport& r = in_.front();
+  // Skip the broad phase when no fingertip is near the cloth's bounding box.
+  Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+  for (const auto& x : s_.x) {
+    lo = lo.cwiseMin(x);
+    hi = hi.cwiseMax(x);
+  }
+  const double reach = fp_.radius + cp_.margin;
+  bool near = false;
+  for (int fi = 0; fi < fingers_ && r.time >= 0.0; ++fi) {
+    const Vec3& p = r.finger[fi].position;
+    near = near || ((p.array() >= lo.array() - reach).all() && (p.array() <= hi.array() + reach).all());
+  }
+  if (!near) {
+    for (int fi = 0; fi < fingers_; ++fi) {
+      snap.ncand[fi] = 0;
+      snap.overflow[fi] = false;
+    }
+    return;
+  }
+  // Refit lazily: the hierarchy stays conservative if the query grows by the largest vertex
+  // displacement since the last refit; refit once that exceeds the slack.
+  double disp2 = 0.0;
+  for (size_t i = 0; i < s_.x.size(); ++i) disp2 = std::max(disp2, (s_.x[i] - x_refit_[i]).squaredNorm());
+  double disp = std::sqrt(disp2);
+  if (disp > cp_.refit_slack) {
+    bp_.refit(s_.x);
+    x_refit_ = s_.x;
+    disp = 0.0;
+    ++refits_;
+  }
   for (int fi = 0; fi < fingers_; ++fi) {
     snap.ncand[fi] = 0;
     snap.overflow[fi] = false;
     if (r.time < 0.0) continue;
-    const int n = bp_.query_sphere(r.finger[fi].position, fp_.radius + cp_.margin,
+    const int n = bp_.query_sphere(r.finger[fi].position, fp_.radius + cp_.margin + disp,
                                    snap.cand[fi].data(), kMaxCandidates);
     snap.ncand[fi] = n;
     snap.overflow[fi] = n >= kMaxCandidates;

@@ -22,6 +22,9 @@ struct CouplingParams {
   double kernel_radius = 0.0;
   /// Broad-phase margin beyond the fingertip radius, m (covers motion between two steps).
   double margin = 0.01;
+  /// Largest vertex displacement (m) before the hierarchy is refitted; until then queries grow
+  /// by the displacement so that they stay conservative.
+  double refit_slack = 0.003;
 };
 
 class SimWorker {
@@ -44,6 +47,7 @@ class SimWorker {
   double kernel_radius() const { return kernel_r_; }
   const Histogram& step_us() const { return step_us_; }
   std::uint64_t steps() const { return steps_; }
+  std::uint64_t refits() const { return refits_; }
   /// Sum of the contact forces applied to the cloth on the last step, N.
   const Vec3& applied_force() const { return applied_; }
 
@@ -66,6 +70,8 @@ class SimWorker {
   std::vector<Vec3> normals_;
   std::vector<double> w_;
   ClothSnapshot mine_;
+  std::vector<Vec3> x_refit_;  // positions at the last refit
+  std::uint64_t refits_ = 0;
   Vec3 applied_ = Vec3::Zero();
   Histogram step_us_;
   std::uint64_t steps_ = 0;
