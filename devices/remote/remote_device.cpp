@@ -34,10 +34,16 @@ std::string RemoteDevice::configure() {
   proto.p.resize(kMaxPoints);
   slot_.clear();
   for (int f = 0; f < opt_.fingers; ++f) slot_.push_back(std::make_unique<Latest<Plan>>(proto));
-  // Rest where the demo trajectory starts, pulled inside the workspace.
-  const Trajectory demo = demo_trajectory(opt_.fingers);
+  // Rest where the script (if any) or the demo trajectory starts, pulled inside the workspace.
+  Trajectory start;
+  try {
+    start = opt_.script.empty() ? demo_trajectory(opt_.fingers) : load_trajectory(opt_.script, opt_.fingers);
+  } catch (const std::exception& e) {
+    return std::string("remote: ") + e.what();
+  }
   for (int f = 0; f < opt_.fingers; ++f) {
-    const Vec3 p = demo.keys(f).front().p.cwiseMax(opt_.workspace.min).cwiseMin(opt_.workspace.max);
+    const Trajectory& src = start.keys(f).empty() ? demo_trajectory(opt_.fingers) : start;
+    const Vec3 p = src.keys(f).front().p.cwiseMax(opt_.workspace.min).cwiseMin(opt_.workspace.max);
     follow_[f] = Follow{};
     follow_[f].start = p;
     last_.finger[f].position = p;

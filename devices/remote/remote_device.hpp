@@ -7,8 +7,10 @@
 // reach the real-time side through one lock-free latest-value slot per finger. read() and
 // write() take no lock and never allocate.
 //
-// Before any command, finger f rests where the built-in demo trajectory starts (as the mock
-// device does). A new command replaces the finger's trajectory: from where the finger is when
+// Before any command, finger f rests where its script starts (DeviceOptions::script, the same
+// files as the mock device's: the scene's [device] script or --script), or without one where
+// the built-in demo trajectory starts. Only the first keyframe is used: a remote finger moves
+// only when a client says so. A new command replaces the finger's trajectory: from where the finger is when
 // read() takes it, a straight line to the first point (reached at times[0]), then the points,
 // then it holds the last one.
 #pragma once
