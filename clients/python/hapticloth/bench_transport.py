@@ -3,6 +3,9 @@ the ~1000-triangle square (968 triangles, 529 vertices), C++ publisher (the serv
 Python subscriber, over zenoh (tcp on 127.0.0.1) and LCM (udpm inside a network namespace this
 program makes with `unshare --net`; skipped, with the reason, where that is not permitted).
 
+Also the haptic loop's period error (the server's own statistics) with publishing off and
+with four zenoh subscribers of every topic at a 120 Hz mesh rate.
+
 Latency: the message's utime (stamped when the Hub encodes it) to its arrival in the Python
 callback, same host clock. Throughput: messages and MB per second received while the publisher
 encodes and sends in a tight loop.
@@ -115,6 +118,64 @@ def lcm_in_namespace(argv_rest, seconds, rate):
     return json.loads(p.stdout.strip().splitlines()[-1])
 
 
+SUBSCRIBER = r"""
+import sys, time
+from hapticloth.client import Client
+c = Client("zenoh", server="bench", endpoint=sys.argv[1])
+for t in ("cloth", "haptics", "stats", "events"):
+    c.subscribe(t, lambda m: None, raw=True)
+print("ready", flush=True)
+time.sleep(float(sys.argv[2]))
+"""
+
+
+def haptic_impact(seconds, subscribers=4, cloth_rate=120.0, port=17600):
+    """The server's haptic period error with publishing off (--no-zenoh) and with `subscribers`
+    zenoh subscribers of every topic at `cloth_rate` Hz: the server's own loop statistics."""
+    server = find_binary("hapticloth-server")
+    scene = Path(__file__).resolve().parents[3] / "tools" / "scenes" / "hanging_square.toml"
+    out = {}
+    for label, extra in (("publishing_off", ["--no-zenoh"]),
+                         (f"{subscribers}_subscribers_{cloth_rate:g}hz",
+                          ["--zenoh-listen", f"tcp/127.0.0.1:{port}", "--cloth-rate", str(cloth_rate)])):
+        cmd = [server, "--scene", str(scene), "--device", "remote", "--json", "--name", "bench",
+               "--duration", str(seconds)] + extra
+        srv = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        subs = []
+        try:
+            if "--no-zenoh" not in extra:
+                deadline = time.monotonic() + 30
+                while True:  # wait for the server to answer (bounded)
+                    try:
+                        with Client("zenoh", server="bench", endpoint=f"tcp/127.0.0.1:{port}") as c:
+                            c.get_scene(timeout=1.0)
+                        break
+                    except Exception:
+                        if time.monotonic() > deadline or srv.poll() is not None:
+                            raise
+                        time.sleep(0.2)
+                for _ in range(subscribers):
+                    p = subprocess.Popen([sys.executable, "-c", SUBSCRIBER, f"tcp/127.0.0.1:{port}",
+                                          str(seconds + 30)], stdout=subprocess.PIPE, text=True)
+                    subs.append(p)
+                    p.stdout.readline()
+            o, e = srv.communicate(timeout=seconds + 60)
+        finally:
+            for p in subs:
+                p.kill()
+                p.wait()
+            if srv.poll() is None:
+                srv.kill()
+                srv.wait()
+        j = json.loads(o.strip().splitlines()[-1])
+        out[label] = {"period_error_p99_us": j["period_error_us"]["p99"],
+                      "period_error_p999_us": j["period_error_us"]["p999"],
+                      "period_error_max_us": j["period_error_us"]["max"],
+                      "missed_deadlines": j["missed_deadlines"], "ticks": j["haptic_ticks"],
+                      "realtime_scheduling": j.get("realtime_scheduling")}
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="hapticloth-bench-transport", description=__doc__.split("\n\n")[0])
     ap.add_argument("--json", action="store_true", help="print one JSON object")
@@ -122,6 +183,8 @@ def main(argv=None):
     ap.add_argument("--rate", type=float, default=1000.0, help="Hz of cloth states for the latency runs")
     ap.add_argument("--port", type=int, default=17500, help="zenoh tcp port on 127.0.0.1")
     ap.add_argument("--transports", default="zenoh,lcm")
+    ap.add_argument("--haptic-seconds", type=float, default=10.0,
+                    help="seconds per server run of the haptic-impact measurement (0: skip it)")
     ap.add_argument("--inner-lcm", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     url = "udpm://239.255.76.67:7667?ttl=0"
@@ -134,6 +197,8 @@ def main(argv=None):
             res["zenoh"] = run_transport("zenoh", a.seconds, a.rate, a.port, url)
         elif t == "lcm":
             res["lcm"] = lcm_in_namespace(argv, a.seconds, a.rate)
+    if a.haptic_seconds > 0:
+        res["haptic_impact"] = haptic_impact(a.haptic_seconds)
     if a.json:
         print(json.dumps(res))
     else:
