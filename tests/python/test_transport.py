@@ -311,6 +311,44 @@ def test_a_late_joiner_gets_the_scene():
         srv.kill()
 
 
+def test_command_line_record_and_inject(tmp_path):
+    """hapticloth-record and hapticloth-inject (CSV time,finger,x,y,z) against a server."""
+    bindir = Path(sys.executable).parent
+    csv = tmp_path / "traj.csv"
+    csv.write_text("time,finger,x,y,z\n0.5,0,-0.02,-0.03,0.0\n1.0,0,-0.02,-0.02,0.0\n"
+                   "0.5,1,0.06,0.03,0.0\n")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("0.0,0,0.5,0.0,0.0\n")
+    log = tmp_path / "rec.lcmlog"
+    srv = Server(10.0)
+    rec = None
+    try:
+        c, _ = connect(srv)
+        c.close()
+        conn = ["--server", "t", "--endpoint", srv.endpoint]
+        rec = subprocess.Popen([str(bindir / "hapticloth-record"), str(log), "--duration", "2"] + conn,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        ok = subprocess.run([str(bindir / "hapticloth-inject"), str(csv)] + conn,
+                            capture_output=True, text=True, timeout=60)
+        assert ok.returncode == 0, ok.stderr
+        assert ok.stdout.count("accepted:") == 2
+        no = subprocess.run([str(bindir / "hapticloth-inject"), str(bad)] + conn,
+                            capture_output=True, text=True, timeout=60)
+        assert no.returncode == 1 and "outside the workspace" in no.stdout
+        out, err = rec.communicate(timeout=60)
+        assert rec.returncode == 0, err
+        counts = dict(kv.split("=") for kv in out.split())
+        assert int(counts["haptics"]) > 100 and int(counts["cloth"]) > 50 and int(counts["scene"]) >= 1
+        srv.result()
+    finally:
+        if rec and rec.poll() is None:
+            rec.kill()
+        srv.kill()
+    import lcm
+    channels = {ev.channel for ev in lcm.EventLog(str(log), "r")}
+    assert {"HAPTICLOTH_HAPTICS", "HAPTICLOTH_CLOTH", "HAPTICLOTH_SCENE", "HAPTICLOTH_EVENTS"} <= channels
+
+
 STALL_SCRIPT = r"""
 import sys, time, threading
 sys.path.insert(0, %(pkg)r)
