@@ -1,0 +1,175 @@
+"""Tests of hapticloth-plot (clients/python/hapticloth/plot.py) on LCM logs written here with the
+Python lcm package, and on a short log of the server itself (skipped without a build): a PNG of
+the requested size, the period error recovered from the tick times, clear errors for unusable
+logs. Also tools/pictures end to end on the server's log (skipped without hapticloth-render)."""
+
+from __future__ import annotations
+
+import os
+import struct
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+lcm = pytest.importorskip("lcm")
+
+from hapticloth import plot  # noqa: E402
+from hapticloth.lcmtypes import cloth_state_t, haptic_state_t, loop_stats_t, scene_info_t  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+BUILD = Path(os.environ.get("HAPTICLOTH_BUILD_DIR", REPO / "build"))
+if not BUILD.is_absolute():
+    BUILD = REPO / BUILD
+
+
+def png_size(path: Path) -> tuple[int, int]:
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    assert data[12:16] == b"IHDR"
+    return struct.unpack(">II", data[16:24])
+
+
+def haptic_batch(ticks, rate, delays_us, fingers=2):
+    """One haptic_state_t: ticks (1-based) woken delays_us after their deadlines."""
+    m = haptic_state_t()
+    m.num_samples = len(ticks)
+    m.num_fingers = fingers
+    m.time = [(k - 1) / rate + d * 1e-6 for k, d in zip(ticks, delays_us)]
+    m.tick = list(ticks)
+    zero = [[0.0, 0.0, 0.0] for _ in range(fingers)]
+    m.device_position = [zero for _ in ticks]
+    m.position = [zero for _ in ticks]
+    m.proxy = [zero for _ in ticks]
+    # Finger f pushes with f + 1 N along y between 0.2 s and 0.6 s.
+    m.force = [[[0.0, (f + 1.0) if 0.2 <= (k - 1) / rate < 0.6 else 0.0, 0.0] for f in range(fingers)]
+               for k in ticks]
+    m.command = m.force
+    m.in_contact = [[0.2 <= (k - 1) / rate < 0.6] * fingers for k in ticks]
+    m.slipping = [[False] * fingers for _ in ticks]
+    m.command_flags = [0 for _ in ticks]
+    return m
+
+
+def write_log(path: Path, n=1000, rate=1000.0, delays=None, stats=True, haptics=True):
+    """A 1 s run: scene_info_t, haptic batches of 10 ticks, a loop_stats_t and a cloth state."""
+    delays = np.zeros(n) if delays is None else delays
+    log = lcm.EventLog(str(path), "w", overwrite=True)
+    ut = 1_000_000
+    info = scene_info_t()
+    info.scene_name = "synthetic"
+    info.haptic_rate = rate
+    info.max_force = 8.0
+    info.fingers = 2
+    log.write_event(ut, "HAPTICLOTH_SCENE", info.encode())
+    if haptics:
+        for start in range(1, n + 1, 10):
+            ticks = list(range(start, min(start + 10, n + 1)))
+            ut += 10_000
+            log.write_event(ut, "HAPTICLOTH_HAPTICS",
+                            haptic_batch(ticks, rate, [delays[k - 1] for k in ticks]).encode())
+    c = cloth_state_t()
+    c.time, c.step, c.num_vertices, c.positions = 0.5, 500, 1, [[0.0, 0.0, 0.0]]
+    log.write_event(ut, "HAPTICLOTH_CLOTH", c.encode())
+    if stats:
+        s = loop_stats_t()
+        s.ticks, s.missed_deadlines = n, 1
+        s.period_error_p50_us, s.period_error_p99_us, s.period_error_max_us = 0.5, 3.5, 250.0
+        log.write_event(ut, "HAPTICLOTH_STATS", s.encode())
+    log.close()
+
+
+def test_plot_writes_a_png_of_the_requested_size(tmp_path):
+    rng = np.random.default_rng(1)
+    delays = np.abs(rng.normal(0.0, 2.0, 1000))
+    delays[::97] += 200.0
+    log, out = tmp_path / "run.lcm", tmp_path / "plot.png"
+    write_log(log, delays=delays)
+    assert plot.main([str(log), "-o", str(out), "--size", "900x600"]) == 0
+    assert png_size(out) == (900, 600)
+    out2 = tmp_path / "default.png"
+    assert plot.main([str(log), "-o", str(out2)]) == 0
+    assert png_size(out2) == (1200, 800)
+
+
+def test_reads_forces_contacts_and_recovers_the_period_error(tmp_path):
+    rng = np.random.default_rng(2)
+    delays = np.abs(rng.normal(0.0, 3.0, 1000))
+    delays[0] = 0.0  # the loop is on time at least once
+    delays[500] = 750.0
+    log = tmp_path / "run.lcm"
+    write_log(log, delays=delays)
+    run = plot.read_log(log)
+    assert run.fingers == 2
+    assert len(run.time) == 1000
+    assert run.scene.scene_name == "synthetic"
+    assert run.stats[-1].period_error_max_us == pytest.approx(250.0)
+    mag = np.linalg.norm(run.force, axis=2)
+    assert mag[:, 1].max() == pytest.approx(2.0)
+    assert run.contact[:, 0].sum() == 400
+    err = plot.period_errors_us(run, 1000.0)
+    assert err == pytest.approx(delays, abs=0.01)
+    spans = plot.contact_spans(run.time, run.contact[:, 0])
+    assert len(spans) == 1 and spans[0][0] == pytest.approx(0.2, abs=1e-3)
+
+
+def test_stepped_clock_log_without_loop_stats_plots(tmp_path):
+    log, out = tmp_path / "fast.lcm", tmp_path / "plot.png"
+    write_log(log, stats=False)
+    assert plot.main([str(log), "-o", str(out), "--size", "640x480"]) == 0
+    assert png_size(out) == (640, 480)
+    run = plot.read_log(log)
+    assert plot.period_errors_us(run, 1000.0).max() < 1e-3
+    assert "stepped clock" in plot.stats_text(run, plot.period_errors_us(run, 1000.0))
+
+
+def test_log_without_haptic_samples_is_a_clear_error(tmp_path, capsys):
+    log = tmp_path / "empty.lcm"
+    write_log(log, haptics=False)
+    assert plot.main([str(log), "-o", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err
+    assert f"{log}: no haptic_state_t message (was the log written by hapticloth-server?)" in err
+    assert not (tmp_path / "x.png").exists()
+    assert plot.main([str(tmp_path / "missing.lcm"), "-o", str(tmp_path / "x.png")]) == 2
+    assert "cannot open" in capsys.readouterr().err
+
+
+def test_bad_size_is_rejected(tmp_path):
+    with pytest.raises(SystemExit) as e:
+        plot.main([str(tmp_path / "x.lcm"), "-o", str(tmp_path / "x.png"), "--size", "big"])
+    assert e.value.code == 2
+
+
+def server_log(tmp_path) -> Path:
+    server = BUILD / "hapticloth-server"
+    if not server.is_file():
+        pytest.skip("hapticloth-server is not built")
+    log = tmp_path / "run.lcm"
+    r = subprocess.run([str(server), "--scene", str(REPO / "tools/scenes/hanging_square.toml"), "--fast",
+                        "--duration", "1", "--no-zenoh", "--lcm-log", str(log)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    return log
+
+
+def test_plot_of_a_server_log(tmp_path):
+    log = server_log(tmp_path)
+    out = tmp_path / "plot.png"
+    assert plot.main([str(log), "-o", str(out), "--size", "800x500"]) == 0
+    assert png_size(out) == (800, 500)
+    run = plot.read_log(log)
+    assert len(run.time) == 1000 and run.fingers == 2
+
+
+def test_pictures_script_on_a_server_log(tmp_path):
+    if not (BUILD / "hapticloth-render").is_file():
+        pytest.skip("hapticloth-render is not built")
+    log = server_log(tmp_path)
+    out = tmp_path / "pictures"
+    r = subprocess.run([str(REPO / "tools/pictures"), str(log), "--out", str(out), "--time", "0.8"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert png_size(out / "pinch.png") == (1280, 720)
+    assert png_size(out / "pinch_shear.png") == (1280, 720)
+    assert png_size(out / "plot.png") == (1200, 800)
