@@ -39,7 +39,8 @@ void fill_rect(Image& img, int x0, int y0, int x1, int y1, Rgb c, double alpha =
 /// Pixel size of `text` in the 5x7 font at `scale` (each font pixel is scale x scale).
 int text_width(const std::string& text, int scale);
 inline int text_height(int scale) { return 7 * scale; }
-/// Draws `text` with its top-left corner at (x, y). Characters the font lacks show as '?'.
+/// Draws `text` with its top-left corner at (x, y); descenders (g, j, p, q, y, _) reach one font
+/// pixel below text_height. Characters the font lacks show as '?'.
 void draw_text(Image& img, int x, int y, const std::string& text, int scale, Rgb c);
 
 /// Writes `img` as an 8-bit RGB PNG. Throws std::runtime_error naming the path on failure.

@@ -267,37 +267,37 @@ namespace {
 
 constexpr int kLineGap = 4;  // font pixels between text lines
 
-// Time, scene, colour mode and the finger forces at the top left, on a light panel so the text
-// stays readable over the cloth.
+// Time, scene and colour mode, and each finger's force (swatch filled: in contact) at the top
+// left, on a light panel so the text stays readable over the cloth.
 void draw_label(Image& img, const Scene& scene, const ClothFrame& frame, const HapticTick* haptics,
                 const Style& style, int s) {
-  std::vector<std::pair<std::string, const Rgb*>> lines;
-  std::string head = format("t = %.2f s", frame.time);
-  if (!scene.name.empty()) head = scene.name + "   " + head;
-  lines.emplace_back(head, nullptr);
-  lines.emplace_back(std::string("colour: ") + color_mode_name(style.color), nullptr);
-  std::vector<Rgb> colors;
-  if (haptics) {
-    colors.reserve(haptics->fingers.size());
+  struct Line {
+    std::string text;
+    int finger = -1;
+    bool contact = false;
+  };
+  std::vector<Line> lines;
+  lines.push_back({format("t = %.2f s", frame.time)});
+  lines.push_back({(scene.name.empty() ? std::string() : scene.name + ", ") + color_mode_name(style.color)});
+  if (haptics)
     for (std::size_t f = 0; f < haptics->fingers.size(); ++f) {
       const FingerSample& fs = haptics->fingers[f];
-      colors.push_back(finger_color(f));
-      lines.emplace_back("finger " + std::to_string(f) + format(": %.3f N", fs.force.norm()) + (fs.contact ? " (contact)" : ""),
-                         &colors.back());
+      lines.push_back({"finger " + std::to_string(f) + format("  %.3f N", fs.force.norm()), static_cast<int>(f), fs.contact});
     }
-  }
-  const int line = text_height(s) + kLineGap * s, swatch = text_height(s) + 3 * s;
+  const int line = text_height(s) + kLineGap * s, box = text_height(s), swatch = box + 3 * s;
   int w = 0;
-  for (const auto& [t, c] : lines) w = std::max(w, text_width(t, s) + (c ? swatch : 0));
+  for (const Line& l : lines) w = std::max(w, text_width(l.text, s) + (l.finger >= 0 ? swatch : 0));
   fill_rect(img, 0, 0, w + 9 * s, static_cast<int>(lines.size()) * line + 5 * s, style.background, 0.75);
   int y = 4 * s;
-  for (const auto& [t, c] : lines) {
+  for (const Line& l : lines) {
     int x = 5 * s;
-    if (c) {
-      fill_rect(img, x, y, x + text_height(s), y + text_height(s), *c);
+    if (l.finger >= 0) {
+      const Rgb c = finger_color(static_cast<std::size_t>(l.finger));
+      fill_rect(img, x, y, x + box, y + box, c);
+      if (!l.contact) fill_rect(img, x + s, y + s, x + box - s, y + box - s, style.background);
       x += swatch;
     }
-    draw_text(img, x, y, t, s, kTextColor);
+    draw_text(img, x, y, l.text, s, kTextColor);
     y += line;
   }
 }

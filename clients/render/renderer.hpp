@@ -27,7 +27,7 @@ struct Style {
   double finger_radius = 0.008;   ///< m
   double force_scale = 0.02;      ///< m of arrow per N of force; 0: no arrows
   bool colorbar = true;           ///< strain modes: the colour bar at the right
-  bool label = true;              ///< time, scene and finger forces at the top left
+  bool label = true;              ///< time, scene and finger forces (swatch filled: in contact) at the top left
   Rgb background{246, 246, 243};
 };
 
