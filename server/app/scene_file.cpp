@@ -156,7 +156,7 @@ void load_device(const TomlFile& f, const toml::table& t, const std::string& pat
 void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   f.only_keys(t, "haptics", {"rate", "finger_radius", "stiffness", "damping", "friction",
                              "kernel_radius", "margin", "preroll", "slew_rate", "watchdog_ms",
-                             "ramp_ms", "max_force", "realtime"});
+                             "ramp_ms", "max_force", "realtime", "local_patch"});
   auto& h = s.haptics;
   auto positive = [&](const char* key, double& v, const char* unit) {
     v = f.number(t, "haptics", key, v);
@@ -182,6 +182,9 @@ void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   h.gate.ramp_time = ramp * 1e-3;
   non_negative("max_force", h.gate.max_force, "N; 0 = the device's");
   h.try_realtime = f.boolean(t, "haptics", "realtime", h.try_realtime);
+  s.local_patch = f.string(t, "haptics", "local_patch", s.local_patch);
+  if (s.local_patch != "auto" && s.local_patch != "on" && s.local_patch != "off")
+    f.fail(t.get("local_patch"), "haptics.local_patch", "must be \"auto\", \"on\" or \"off\"");
 }
 
 }  // namespace

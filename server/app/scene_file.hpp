@@ -31,6 +31,9 @@ struct Scene {
   /// [haptics]: the 1 kHz loop, fingertips, coupling and safety gate.
   haptics::SessionConfig haptics;
   double preroll = 0.0;  ///< s simulated (as fast as possible) before the device session starts
+  /// Local refinement (4.2): "auto" (on when the global step does not fit in the haptic
+  /// period), "on" or "off".
+  std::string local_patch = "auto";
 };
 
 /// Loads a scene; relative paths inside it are resolved against the scene file's folder.

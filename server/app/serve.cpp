@@ -28,12 +28,18 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
   std::vector<std::string> s;
   std::ostringstream os;
   os << std::fixed << std::setprecision(3);
-  if (step_ms <= haptic_period_ms) {
-    os << "direct coupling: the global step takes " << step_ms << " ms (median at start-up), within the "
-       << haptic_period_ms << " ms haptic period, so the haptic loop uses the whole cloth";
+  const bool fits = step_ms <= haptic_period_ms;
+  if (sc.haptics.local_patch) {
+    os << "local refinement on (" << (sc.local_patch == "on" ? "asked for" : "the global step")
+       << " " << step_ms << " ms median at start-up vs the " << haptic_period_ms
+       << " ms haptic period): a subdivided patch per fingertip runs at the haptic rate";
+  } else if (fits) {
+    os << "direct coupling, no local patch: the global step takes " << step_ms
+       << " ms (median at start-up), within the " << haptic_period_ms
+       << " ms haptic period, so the haptic loop uses the whole cloth";
   } else {
-    os << "global step " << step_ms << " ms > haptic period " << haptic_period_ms
-       << " ms: the haptic loop extrapolates the cloth at constant velocity between global steps";
+    os << "local refinement off (asked for): the global step " << step_ms << " ms > haptic period "
+       << haptic_period_ms << " ms; the cloth is extrapolated at constant velocity between steps";
   }
   s.push_back(os.str());
   s.push_back(sc.material.viscous() ? "strain-rate (viscous) terms on: the material has viscosity"
@@ -70,6 +76,8 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   const double median_ms = step_ms[step_ms.size() / 2];
 
   haptics::SessionConfig sc = scene.haptics;
+  scene.haptics.local_patch = sc.local_patch =
+      scene.local_patch == "on" || (scene.local_patch == "auto" && median_ms > 1000.0 / sc.haptic_rate);
   haptics::Session session(model, scene.integrator, cloth::make_solver(scene.solver, scene.pcg),
                            state, dev, sc);
   const auto st = stages(scene, model, median_ms, 1000.0 / sc.haptic_rate);

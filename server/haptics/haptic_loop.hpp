@@ -6,6 +6,7 @@
 // report contacts to the simulation. tick() allocates nothing and takes no lock.
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
@@ -13,6 +14,7 @@
 #include "hal/handle.hpp"
 #include "hal/safety_gate.hpp"
 #include "haptics/handoff.hpp"
+#include "haptics/local_patch.hpp"
 #include "haptics/stats.hpp"
 #include "haptics/triple_buffer.hpp"
 
@@ -40,6 +42,16 @@ class HapticLoop {
 
   /// One tick at loop time `now` (s). Real-time safe.
   void tick(double now) noexcept;
+
+  /// Local refinement (4.2): a subdivided patch per fingertip simulated at the haptic rate.
+  /// Set-up only (allocates the patches).
+  void enable_local_patch(const std::vector<Vec3>& rest, const std::vector<char>& pinned,
+                          const PatchParams& p);
+  bool local_patch() const { return !patch_.empty(); }
+  /// Without local patches: extrapolate the cloth at constant velocity between global steps
+  /// (default), or hold the last global state (the naive coupling, for comparison).
+  void set_extrapolation(bool on) { extrapolate_ = on; }
+  std::uint64_t patch_rebuilds() const { return rebuilds_; }
 
   const HapticReport& last_report() const { return report_; }
   const devices::DeviceState& device_state() const { return state_; }
@@ -74,6 +86,9 @@ class HapticLoop {
   devices::DeviceCommand cmd_, gated_;
   HapticReport report_;
   std::array<Proxy, kMaxFingers> proxy_{};
+  std::vector<std::unique_ptr<LocalPatch>> patch_;
+  bool extrapolate_ = true;
+  std::uint64_t rebuilds_ = 0;
   double last_now_ = -1.0;
   std::uint64_t tick_ = 0, device_errors_ = 0, overflows_ = 0, contact_ticks_ = 0, np_skipped_ = 0;
 };

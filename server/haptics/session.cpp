@@ -60,6 +60,16 @@ Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& 
                                      sc_.finger, sc_.coupling, *snap_, *rep_);
   loop_ = std::make_unique<HapticLoop>(tris_, model.num_vertices(), dev_, *gate_, sc_.finger,
                                        sc_.mapping, *snap_, *rep_);
+  loop_->set_extrapolation(sc_.extrapolate);
+  if (sc_.local_patch) {
+    PatchParams p = sc_.patch;
+    p.areal_density = model.material.areal_density;
+    p.stiffness = 0.5 * (model.material.weft.B[0][1] + model.material.warp.B[0][1]);
+    // The patch reaches the force-spreading kernel's radius (2 mean edges), at least 2 fingertip
+    // radii: enough triangles to hold the dent, few enough to step 32 times a millisecond.
+    if (!(sc_.patch.radius > 0.0)) p.radius = std::max(2.0 * sc_.finger.radius, sim_->kernel_radius());
+    loop_->enable_local_patch(model.rest_positions, model.pinned, p);
+  }
 }
 
 Session::~Session() { dev_.deactivate(); }

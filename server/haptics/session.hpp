@@ -27,6 +27,11 @@ struct SessionConfig {
   DeviceMapping mapping;
   devices::GateConfig gate;
   bool try_realtime = true;     ///< SCHED_FIFO + mlockall for the haptic thread if permitted
+  /// Local refinement (4.2): a subdivided patch per fingertip at the haptic rate. The server
+  /// turns it on when the global step does not fit in the haptic period.
+  bool local_patch = false;
+  PatchParams patch;            ///< stiffness and density are taken from the material
+  bool extrapolate = true;      ///< without patches: constant-velocity extrapolation (else hold)
   double spin_lead = 150e-6;    ///< s: the haptic thread sleeps to this before each deadline, then spins
 };
 

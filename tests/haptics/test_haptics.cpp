@@ -304,11 +304,16 @@ TEST(Haptics, PinchLiftAndRelease) {
   EXPECT_LT(z_released, z_lifted - 0.005);         // falls back once released
 }
 
-// The haptic tick allocates nothing (device read/write, narrow phase, proxy, gate, handoff).
-TEST(Haptics, TickAllocatesNothing) {
+// The haptic tick allocates nothing (device read/write, narrow phase or local patch, proxy,
+// gate, handoff).
+class TickAllocation : public ::testing::TestWithParam<bool> {};
+
+TEST_P(TickAllocation, TickAllocatesNothing) {
   const double r = 0.008;
+  haptics::SessionConfig sc;
+  sc.local_patch = GetParam();
   // Pressing from the first tick (the script restarts when the device is reactivated).
-  Rig rig(drum(), one_finger({{0.0, Vec3(0.003, 0.002, r - 0.003)}, {1.0, Vec3(0.003, 0.002, r - 0.003)}}));
+  Rig rig(drum(), one_finger({{0.0, Vec3(0.003, 0.002, r - 0.003)}, {1.0, Vec3(0.013, 0.002, r - 0.003)}}), sc);
   auto& s = *rig.session;
   std::uint64_t allocs = 0, contact = 0;
   s.run_stepped(1.0, 0.0, [&](const haptics::HapticLoop&, const haptics::SimWorker&) {});
@@ -325,4 +330,50 @@ TEST(Haptics, TickAllocatesNothing) {
   }
   EXPECT_EQ(allocs, 0u);
   EXPECT_GT(contact, 400u);
+  if (GetParam()) {
+    EXPECT_GE(h.patch_rebuilds(), 1u);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(DirectAndLocalPatch, TickAllocation, ::testing::Bool());
+
+// Local refinement (4.2): with the global simulation at 25 Hz, the force the user feels does
+// not jump when the global state updates (at most 10% of the contact force), while the naive
+// coupling (the global surface held between its steps) jumps by more than that.
+TEST(Haptics, LocalPatchKeepsForceContinuousAt25Hz) {
+  const double r = 0.008;
+  auto run = [&](bool patch) {
+    haptics::SessionConfig sc;
+    sc.local_patch = patch;
+    sc.extrapolate = false;
+    cloth::IntegratorConfig ic = sim_config(0.04);  // 25 Hz global simulation
+    Rig rig(drum(), one_finger({{0.0, Vec3(-0.03, 0.002, 0.03)},
+                                {0.3, Vec3(-0.03, 0.002, r - 0.004)},
+                                {0.8, Vec3(-0.03, 0.002, r - 0.004)},
+                                {2.8, Vec3(0.03, 0.002, r - 0.004)}}),
+            sc, ic);
+    double worst = 0.0, fsum = 0.0, prev = -1.0;
+    int n = 0;
+    rig.session->run_stepped(2.8, 0.04, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
+      const auto& f = h.last_report().finger[0];
+      const double t = h.last_report().time;
+      const double F = f.in_contact ? f.force.norm() : 0.0;
+      const long k = std::lround(t * 1000);
+      if (t > 1.0 && prev > 0.0 && F > 0.0 && k % 40 == 0) {  // the tick a global update lands
+        worst = std::max(worst, std::abs(F - prev) / F);
+        fsum += F;
+        ++n;
+      }
+      prev = F;
+    });
+    EXPECT_GT(n, 30) << (patch ? "patch" : "naive");
+    return std::pair{worst, n ? fsum / n : 0.0};
+  };
+  const auto [jump_patch, f_patch] = run(true);
+  const auto [jump_naive, f_naive] = run(false);
+  EXPECT_GT(f_patch, 0.05);
+  EXPECT_LE(jump_patch, 0.10) << "mean force " << f_patch;
+  EXPECT_GT(jump_naive, 0.10) << "mean force " << f_naive;
+  std::printf("force jump at 25 Hz updates: patch %.3f, naive %.3f (mean force %.3f / %.3f N)\n",
+              jump_patch, jump_naive, f_patch, f_naive);
 }

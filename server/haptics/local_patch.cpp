@@ -1,0 +1,276 @@
+#include "haptics/local_patch.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Geometry>
+
+namespace hapticloth::haptics {
+
+LocalPatch::LocalPatch(const std::vector<std::array<int, 3>>& global_tris,
+                       const std::vector<Vec3>& rest_positions, const std::vector<char>& pinned,
+                       const PatchParams& p)
+    : gt_(global_tris), rest_(rest_positions), pinned_(pinned), p_(p) {
+  const int T = p_.max_triangles;
+  const int V = 6 * T + 8, E = 12 * T + 8;
+  ga_.assign(V, 0);
+  gb_.assign(V, 0);
+  border_.assign(V, 0);
+  x_.assign(V, Vec3::Zero());
+  v_.assign(V, Vec3::Zero());
+  n_.assign(V, Vec3::UnitZ());
+  f_.assign(V, Vec3::Zero());
+  m_.assign(V, 0.0);
+  tri_.assign(4 * T, {0, 0, 0});
+  edge_.assign(E, {0, 0});
+  rest_len_.assign(E, 0.0);
+  k_.assign(E, 0.0);
+  sel_.assign(T, 0);
+  key_.assign(4 * V, {-1, -1, -1});
+  wi_.assign(128, 0);
+  ww_.assign(128, 0.0);
+  x0_.assign(128, Vec3::Zero());
+}
+
+void LocalPatch::rebuild(const ClothSnapshot& s, const Vec3& c) noexcept {
+  nt_ = nv_ = ne_ = 0;
+  centre_ = c;
+  // Global triangles with a corner within the radius, nearest first up to the capacity.
+  int ns = 0;
+  const double R2 = p_.radius * p_.radius;
+  for (int t = 0; t < static_cast<int>(gt_.size()) && ns < p_.max_triangles; ++t) {
+    const auto& g = gt_[t];
+    bool in = false;
+    for (int k = 0; k < 3; ++k) in = in || (s.x[g[k]] - c).squaredNorm() < R2;
+    if (in) sel_[ns++] = t;
+  }
+  if (ns == 0) return;
+  for (auto& k : key_) k = {-1, -1, -1};
+  const int cap = static_cast<int>(key_.size());
+  // Patch vertex of global vertex a (a == b) or of the midpoint of edge (a, b); counts uses
+  // of each edge in key_[.][?] is not needed: border edges are found below.
+  auto vertex = [&](int a, int b) {
+    if (a > b) std::swap(a, b);
+    unsigned h = (static_cast<unsigned>(a) * 73856093u) ^ (static_cast<unsigned>(b) * 19349663u);
+    for (int i = 0; i < cap; ++i) {
+      auto& e = key_[(h + i) % cap];
+      if (e[0] == a && e[1] == b) return e[2];
+      if (e[0] < 0) {
+        e = {a, b, nv_};
+        ga_[nv_] = a;
+        gb_[nv_] = b;
+        border_[nv_] = 0;
+        m_[nv_] = 0.0;
+        return nv_++;
+      }
+    }
+    return 0;  // unreachable: the table holds 4x the capacity
+  };
+  for (int i = 0; i < ns; ++i) {
+    const auto& g = gt_[sel_[i]];
+    const int a = vertex(g[0], g[0]), b = vertex(g[1], g[1]), cc = vertex(g[2], g[2]);
+    const int ab = vertex(g[0], g[1]), bc = vertex(g[1], g[2]), ca = vertex(g[2], g[0]);
+    tri_[nt_++] = {a, ab, ca};
+    tri_[nt_++] = {ab, b, bc};
+    tri_[nt_++] = {ca, bc, cc};
+    tri_[nt_++] = {ab, bc, ca};
+  }
+  // Rest geometry, masses (area / 3 per corner) and springs along every refined edge, each
+  // edge once, with stiffness E x (adjacent area) / L^2 (a spring network of modulus E).
+  auto rest_of = [&](int v) { return 0.5 * (rest_[ga_[v]] + rest_[gb_[v]]); };
+  ne_ = 0;
+  for (int t = 0; t < nt_; ++t) {
+    const auto& tr = tri_[t];
+    const Vec3 a = rest_of(tr[0]), b = rest_of(tr[1]), cc = rest_of(tr[2]);
+    const double area = 0.5 * (b - a).cross(cc - a).norm();
+    for (int k = 0; k < 3; ++k) {
+      m_[tr[k]] += p_.areal_density * area / 3.0;
+      int i = tr[k], j = tr[(k + 1) % 3];
+      if (i > j) std::swap(i, j);
+      int e = 0;
+      while (e < ne_ && !(edge_[e][0] == i && edge_[e][1] == j)) ++e;
+      if (e == ne_) {
+        edge_[ne_] = {i, j};
+        rest_len_[ne_] = (rest_of(i) - rest_of(j)).norm();
+        k_[ne_] = 0.0;
+        ++ne_;
+      }
+      k_[e] += p_.stiffness * (area / 2.0) / (rest_len_[e] * rest_len_[e]);
+    }
+  }
+  // Border: refined vertices on the boundary of the patch (edges used by one selected global
+  // triangle) and pinned ones follow the global cloth.
+  for (int i = 0; i < ns; ++i) {
+    const auto& g = gt_[sel_[i]];
+    for (int k = 0; k < 3; ++k) {
+      const int a = g[k], b = g[(k + 1) % 3];
+      int uses = 0;
+      for (int j = 0; j < ns; ++j) {
+        const auto& h = gt_[sel_[j]];
+        for (int l = 0; l < 3; ++l)
+          uses += (h[l] == a && h[(l + 1) % 3] == b) || (h[l] == b && h[(l + 1) % 3] == a);
+      }
+      if (uses == 1) {
+        border_[vertex(a, a)] = border_[vertex(b, b)] = border_[vertex(a, b)] = 1;
+      }
+    }
+  }
+  for (int v = 0; v < nv_; ++v) {
+    if (pinned_[ga_[v]] || pinned_[gb_[v]]) border_[v] = 1;
+    x_[v] = 0.5 * (s.x[ga_[v]] + s.x[gb_[v]]);
+    v_[v] = 0.5 * (s.v[ga_[v]] + s.v[gb_[v]]);
+  }
+  double el = 0.0;
+  for (int e = 0; e < ne_; ++e) el += rest_len_[e];
+  edge_mean_ = ne_ ? el / ne_ : 0.0;
+  normals();
+}
+
+void LocalPatch::border_positions(const ClothSnapshot& s, double now) noexcept {
+  const double dt = std::clamp(now - s.time, 0.0, 0.1);
+  for (int v = 0; v < nv_; ++v) {
+    if (!border_[v]) continue;
+    const Vec3 vel = 0.5 * (s.v[ga_[v]] + s.v[gb_[v]]);
+    x_[v] = 0.5 * (s.x[ga_[v]] + s.x[gb_[v]]) + dt * vel;  // constant velocity (4.2)
+    v_[v] = vel;
+  }
+}
+
+void LocalPatch::normals() noexcept {
+  for (int v = 0; v < nv_; ++v) n_[v].setZero();
+  for (int t = 0; t < nt_; ++t) {
+    const auto& tr = tri_[t];
+    const Vec3 n = (x_[tr[1]] - x_[tr[0]]).cross(x_[tr[2]] - x_[tr[0]]);
+    for (int k = 0; k < 3; ++k) n_[tr[k]] += n;
+  }
+  for (int v = 0; v < nv_; ++v) {
+    const double l = n_[v].norm();
+    n_[v] = l > 0.0 ? Vec3(n_[v] / l) : Vec3::UnitZ();
+  }
+}
+
+Vec3 LocalPatch::step(const ClothSnapshot& s, double now, bool contact, const Vec3& c,
+                      const Vec3& vc, double r, double k, double mu, int side, int tri,
+                      const double b[3], Vec3& anchor, bool& slipping) noexcept {
+  slipping = false;
+  if (nt_ == 0) return Vec3::Zero();
+  const double tick = 1e-3;
+  border_positions(s, now);
+  const int n = std::max(1, p_.substeps);
+  const double h = tick / n;
+  const bool touching = contact && tri >= 0 && tri < nt_;
+  // The touched point and its neighbourhood: the contact force is spread over the patch
+  // vertices within a fingertip's reach with a smooth kernel (as on the global cloth), and the
+  // touched point moves with their weighted displacement. A point force on the light refined
+  // vertices would dent and release them one by one as the finger slides.
+  int nw = 0;
+  Vec3 q0 = Vec3::Zero(), n0 = Vec3::UnitZ();
+  if (touching) {
+    const auto& t = tri_[tri];
+    q0 = b[0] * x_[t[0]] + b[1] * x_[t[1]] + b[2] * x_[t[2]];
+    n0 = (b[0] * n_[t[0]] + b[1] * n_[t[1]] + b[2] * n_[t[2]]).normalized() * side;
+    const double R = std::max(r, 1.5 * edge_mean_), R2 = R * R;
+    double sum = 0.0;
+    for (int v = 0; v < nv_ && nw < static_cast<int>(wi_.size()); ++v) {
+      const double d2 = (x_[v] - q0).squaredNorm();
+      if (d2 >= R2 || border_[v]) continue;
+      const double u = 1.0 - d2 / R2;
+      wi_[nw] = v;
+      ww_[nw] = m_[v] * u * u;
+      x0_[nw] = x_[v];
+      sum += ww_[nw];
+      ++nw;
+    }
+    if (sum <= 0.0) {
+      nw = 0;
+      for (int kk = 0; kk < 3; ++kk) {
+        wi_[nw] = t[kk];
+        ww_[nw] = b[kk];
+        x0_[nw] = x_[t[kk]];
+        ++nw;
+      }
+    } else {
+      for (int i = 0; i < nw; ++i) ww_[i] /= sum;
+    }
+  }
+  Vec3 q_prev = q0;
+  Vec3 user = Vec3::Zero();
+  for (int it = 0; it < n; ++it) {
+    for (int v = 0; v < nv_; ++v) f_[v].setZero();
+    for (int e = 0; e < ne_; ++e) {
+      const int i = edge_[e][0], j = edge_[e][1];
+      const Vec3 d = x_[j] - x_[i];
+      const double L = d.norm();
+      if (L <= 0.0) continue;
+      const Vec3 f = k_[e] * (L - rest_len_[e]) / L * d;
+      f_[i] += f;
+      f_[j] -= f;
+    }
+    if (touching) {
+      Vec3 q = q0;
+      for (int i = 0; i < nw; ++i) q += ww_[i] * (x_[wi_[i]] - x0_[i]);
+      const Vec3& nn = n0;
+      const double depth = r - (c - q).dot(nn);
+      // Normal spring plus damping of the touched point's motion relative to the fingertip:
+      // the refined vertices are light, and the contact spring alone would ring at kHz.
+      Vec3 vq = Vec3::Zero();
+      for (int i = 0; i < nw; ++i) vq += ww_[i] * v_[wi_[i]];
+      const double fn = depth > 0.0 ? std::max(0.0, k * depth + p_.contact_damping * (vq - vc).dot(nn)) : 0.0;
+      // Friction: the anchor rides with the touched point; the spring to it sticks up to mu fn.
+      anchor += q - q_prev;
+      q_prev = q;
+      Vec3 d = anchor - c;
+      d -= d.dot(nn) * nn;
+      Vec3 ft = k * d;
+      const double lim = mu * fn, ftn = ft.norm();
+      if (ftn > lim) {
+        ft *= ftn > 0.0 ? lim / ftn : 0.0;
+        slipping = true;
+      }
+      anchor = c + ft / k + (anchor - c).dot(nn) * nn;
+      const Vec3 Fu = fn * nn + ft;  // on the user's finger
+      user += Fu;
+      for (int i = 0; i < nw; ++i) f_[wi_[i]] -= ww_[i] * Fu;
+    }
+    // Symplectic Euler for the interior, damped towards the cloth's own motion.
+    for (int v = 0; v < nv_; ++v) {
+      if (border_[v]) {
+        x_[v] += h * v_[v];
+        continue;
+      }
+      const Vec3 vg = 0.5 * (s.v[ga_[v]] + s.v[gb_[v]]);
+      v_[v] += h * (f_[v] / m_[v] - p_.damping * (v_[v] - vg));
+      x_[v] += h * v_[v];
+    }
+  }
+  normals();
+  return user / n;
+}
+
+SurfacePoint LocalPatch::closest(const Vec3& p) const noexcept {
+  SurfacePoint best;
+  for (int t = 0; t < nt_; ++t) {
+    const auto& tr = tri_[t];
+    const ClosestPoint cp = closest_point_triangle(p, x_[tr[0]], x_[tr[1]], x_[tr[2]]);
+    if (cp.dist2 < best.dist2) {
+      best.dist2 = cp.dist2;
+      best.point = cp.point;
+      best.triangle = t;
+      for (int k = 0; k < 3; ++k) best.bary[k] = cp.b[k];
+    }
+  }
+  if (best.triangle >= 0) {
+    const auto& tr = tri_[best.triangle];
+    Vec3 n = Vec3::Zero(), v = Vec3::Zero();
+    for (int k = 0; k < 3; ++k) {
+      n += best.bary[k] * n_[tr[k]];
+      v += best.bary[k] * v_[tr[k]];
+    }
+    const double l = n.norm();
+    best.normal = l > 0 ? Vec3(n / l) : Vec3::UnitZ();
+    best.velocity = v;
+  }
+  return best;
+}
+
+}  // namespace hapticloth::haptics

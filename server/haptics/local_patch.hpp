@@ -1,0 +1,93 @@
+// Local refinement (section 4.2): around a fingertip, a patch of the global mesh subdivided
+// once (each triangle into four, masses redistributed by area) and simulated at the haptic rate
+// with a spring-mass model, so that the surface under the finger moves smoothly between global
+// steps. Border vertices follow the global simulation at constant velocity between its steps;
+// interior vertices carry their own state across global updates, so the force the user feels
+// does not jump when a slow global simulation updates. The contact spring acts on the patch at
+// every substep. Storage is fixed at construction: rebuilding and stepping allocate nothing.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "haptics/geometry.hpp"
+#include "haptics/handoff.hpp"
+
+namespace hapticloth::haptics {
+
+struct PatchParams {
+  double radius = 0.0;         ///< m: global triangles with a corner this close to the finger
+                               ///< (0: the session picks it from the mesh)
+  double stiffness = 2000.0;   ///< N/m: membrane modulus of the spring model (set from the law)
+  double areal_density = 0.3;  ///< kg/m^2
+  double damping = 300.0;      ///< 1/s: interior velocity damped towards the global cloth's (the
+                               ///< spring network has no bending: this keeps it from crumpling)
+  double contact_damping = 1.0;  ///< N s/m on the touched point's normal motion in the patch
+  int substeps = 32;           ///< per haptic tick (explicit integration: stable for omega h < 2)
+  int max_triangles = 192;     ///< global triangles per patch (4x as many refined ones)
+};
+
+/// What the finger touches on the patch.
+struct SurfacePoint {
+  Vec3 point, normal, velocity;
+  int triangle = -1;  ///< refined triangle
+  double bary[3];
+  double dist2 = 1e300;
+};
+
+class LocalPatch {
+ public:
+  LocalPatch(const std::vector<std::array<int, 3>>& global_tris,
+             const std::vector<Vec3>& rest_positions, const std::vector<char>& pinned,
+             const PatchParams& p);
+
+  bool active() const { return nt_ > 0; }
+  const Vec3& centre() const { return centre_; }
+  double params_radius() const { return p_.radius; }
+  int triangles() const { return nt_; }
+  int vertices() const { return nv_; }
+  /// Builds the patch around `c` from snapshot `s` (interior state from the snapshot).
+  void rebuild(const ClothSnapshot& s, const Vec3& c) noexcept;
+  void clear() noexcept { nt_ = nv_ = 0; }
+  /// Advances the patch to loop time `now`. While `contact`, the fingertip (centre c, radius r,
+  /// on side `side` of the surface) touches the refined triangle `tri` at barycentric `b`: on
+  /// every substep the normal spring (stiffness k) and the Coulomb friction spring to `anchor`
+  /// (carried by the touched point, sliding when beyond mu x normal force) act on the patch, so
+  /// the coupling is stable for the light refined vertices. Returns the force on the user's
+  /// finger averaged over the substeps; `slipping` tells whether the friction slid.
+  Vec3 step(const ClothSnapshot& s, double now, bool contact, const Vec3& c, const Vec3& vc,
+            double r, double k, double mu, int side, int tri, const double b[3], Vec3& anchor,
+            bool& slipping) noexcept;
+  /// Closest point of the patch surface to p, with shaded normal and velocity.
+  SurfacePoint closest(const Vec3& p) const noexcept;
+  /// The global triangle a refined triangle came from.
+  int global_triangle(int refined) const { return sel_[refined / 4]; }
+
+ private:
+  void border_positions(const ClothSnapshot& s, double now) noexcept;
+  void normals() noexcept;
+
+  const std::vector<std::array<int, 3>>& gt_;
+  const std::vector<Vec3>& rest_;
+  const std::vector<char>& pinned_;
+  PatchParams p_;
+  Vec3 centre_ = Vec3::Zero();
+  int nt_ = 0, nv_ = 0, ne_ = 0;
+  // Patch vertices: either a global vertex (ga = gb) or the midpoint of global edge (ga, gb).
+  std::vector<int> ga_, gb_;
+  std::vector<char> border_;
+  std::vector<Vec3> x_, v_, n_, f_;
+  std::vector<double> m_;
+  std::vector<std::array<int, 3>> tri_;
+  std::vector<std::array<int, 2>> edge_;
+  std::vector<double> rest_len_, k_;
+  std::vector<int> sel_;                    // selected global triangles
+  std::vector<std::array<int, 3>> key_;     // hash table (ga, gb, patch vertex)
+  double edge_mean_ = 0.0;
+  std::vector<int> wi_;                     // contact kernel: vertices, weights, start positions
+  std::vector<double> ww_;
+  std::vector<Vec3> x0_;
+};
+
+}  // namespace hapticloth::haptics
