@@ -156,7 +156,7 @@ void load_device(const TomlFile& f, const toml::table& t, const std::string& pat
 void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   f.only_keys(t, "haptics", {"rate", "finger_radius", "stiffness", "damping", "friction",
                              "kernel_radius", "margin", "preroll", "slew_rate", "watchdog_ms",
-                             "ramp_ms", "max_force", "realtime", "local_patch"});
+                             "ramp_ms", "max_force", "realtime", "local_patch", "finger_mass"});
   auto& h = s.haptics;
   auto positive = [&](const char* key, double& v, const char* unit) {
     v = f.number(t, "haptics", key, v);
@@ -173,6 +173,7 @@ void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   non_negative("friction", h.finger.friction, "Coulomb coefficient");
   non_negative("kernel_radius", h.coupling.kernel_radius, "m; 0 = automatic");
   non_negative("margin", h.coupling.margin, "m");
+  non_negative("finger_mass", h.coupling.finger_mass, "kg; 0 = no impact transfer");
   non_negative("preroll", s.preroll, "s");
   positive("slew_rate", h.gate.slew_rate, "N/s");
   double wd = h.gate.watchdog * 1e3, ramp = h.gate.ramp_time * 1e3;

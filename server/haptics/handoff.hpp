@@ -55,6 +55,8 @@ struct FingerReport {
   double stiffness = 0.0;        ///< N/m of the contact spring (for the implicit coupling)
   bool in_contact = false;
   bool slipping = false;
+  Vec3 velocity = Vec3::Zero();      ///< fingertip velocity, m/s (scene frame)
+  std::uint64_t impacts = 0;         ///< contact onsets so far (4.3.2: the sim applies each once)
 };
 
 struct HapticReport {

@@ -108,6 +108,7 @@ void HapticLoop::finger_contact(int f, double now, double tick_dt, const Vec3& c
     }
     P.contact = true;
     P.anchor = c;
+    ++impacts_[f];  // contact onset: the simulation transfers the impact momentum (4.3.2)
   }
   const double depth = fp_.radius - P.side * h;  // > 0: pressing into the cloth
   if (depth <= 0.0) {
@@ -166,6 +167,8 @@ void HapticLoop::finger_contact(int f, double now, double tick_dt, const Vec3& c
   for (int i = 0; i < 3; ++i) out.bary[i] = bary[i];
   out.stiffness = k_;
   out.in_contact = true;
+  out.velocity = vc;
+  out.impacts = impacts_[f];
 }
 
 void HapticLoop::enable_local_patch(const std::vector<Vec3>& rest, const std::vector<char>& pinned,

@@ -88,6 +88,7 @@ class HapticLoop {
   std::array<Proxy, kMaxFingers> proxy_{};
   std::vector<std::unique_ptr<LocalPatch>> patch_;
   bool extrapolate_ = true;
+  std::array<std::uint64_t, kMaxFingers> impacts_{};
   std::uint64_t rebuilds_ = 0;
   double last_now_ = -1.0;
   std::uint64_t tick_ = 0, device_errors_ = 0, overflows_ = 0, contact_ticks_ = 0, np_skipped_ = 0;

@@ -57,9 +57,37 @@ void SimWorker::vertex_normals() {
   }
 }
 
+double SimWorker::apply_impact(const FingerReport& c, double me) {
+  const double R = kernel_r_, R2 = R * R;
+  const Vec3& n = c.normal;
+  double ms = 0.0, ps = 0.0;
+  for (int i = 0; i < model_.num_vertices(); ++i) {
+    w_[i] = 0.0;
+    if (model_.pinned[i]) continue;
+    const double d2 = (s_.x[i] - c.contact).squaredNorm();
+    if (d2 >= R2) continue;
+    const double u = 1.0 - d2 / R2;
+    w_[i] = u * u;  // phi_i, 1 at the contact point
+    ms += model_.mass[i] * w_[i];
+    ps += model_.mass[i] * w_[i] * s_.v[i].dot(n);
+  }
+  if (ms <= 0.0 || me <= 0.0) return 0.0;
+  const double vs = ps / ms, ve = c.velocity.dot(n);
+  const double ves = (me * ve + ms * vs) / (me + ms);
+  for (int i = 0; i < model_.num_vertices(); ++i)
+    if (w_[i] > 0.0) s_.v[i] += w_[i] * (ves - vs) * n;
+  return ms * (ves - vs);
+}
+
 void SimWorker::apply_contacts() {
   in_.acquire();
   const HapticReport& r = in_.front();
+  for (int fi = 0; fi < fingers_; ++fi) {
+    const FingerReport& c = r.finger[fi];
+    if (r.time < 0.0 || !c.in_contact || c.impacts == impacts_seen_[fi]) continue;
+    impacts_seen_[fi] = c.impacts;
+    apply_impact(c, cp_.finger_mass);
+  }
   auto& f = integ_.external_forces();
   auto& K = integ_.external_stiffness();
   bool any = false;

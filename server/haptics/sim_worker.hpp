@@ -20,6 +20,9 @@ namespace hapticloth::haptics {
 struct CouplingParams {
   /// Radius of the force-spreading kernel, m; 0 = max(fingertip radius, 2 x mean edge).
   double kernel_radius = 0.0;
+  /// Effective moving mass of a fingertip and the device, kg, for the impact at contact onset
+  /// (4.3.2); 0 turns the impact transfer off.
+  double finger_mass = 0.05;
   /// Broad-phase margin beyond the fingertip radius, m (covers motion between two steps).
   double margin = 0.01;
   /// Largest vertex displacement (m) before the hierarchy is refitted; until then queries grow
@@ -51,6 +54,13 @@ class SimWorker {
   /// Sum of the contact forces applied to the cloth on the last step, N.
   const Vec3& applied_force() const { return applied_; }
 
+  /// Impact at contact onset (4.3.2): the fingertip (mass m_e, normal velocity v_e) and the
+  /// cloth around the contact point (the kernel's effective mass m_s, normal velocity v_s) move
+  /// on together at v_es = (m_e v_e + m_s v_s) / (m_e + m_s): the cloth's normal velocities
+  /// change by phi_i (v_es - v_s), phi the kernel shape. Momentum is conserved exactly.
+  /// Returns the normal momentum given to the cloth, N s.
+  double apply_impact(const FingerReport& c, double finger_mass);
+
  private:
   void apply_contacts();
   void find_candidates();
@@ -72,6 +82,7 @@ class SimWorker {
   ClothSnapshot mine_;
   std::vector<Vec3> x_refit_;  // positions at the last refit
   std::uint64_t refits_ = 0;
+  std::array<std::uint64_t, kMaxFingers> impacts_seen_{};
   Vec3 applied_ = Vec3::Zero();
   Histogram step_us_;
   std::uint64_t steps_ = 0;
