@@ -190,6 +190,17 @@ class Client:
             return seq
         return (seq,) + self.wait_ack(seq, wait)
 
+    def inject_trajectories(self, trajectories, frame="device", wait=None):
+        """Several fingers at once: `trajectories` maps finger -> (times, positions). All are
+        sent back to back (so the server takes them within a tick or two of each other), then,
+        with wait=seconds, the answers are awaited: returns {finger: (seq, accepted, text)}."""
+        if wait:
+            self._ensure_acks()
+        seqs = {f: self.inject_trajectory(f, t, p, frame=frame) for f, (t, p) in trajectories.items()}
+        if not wait:
+            return seqs
+        return {f: (seq,) + self.wait_ack(seq, wait) for f, seq in seqs.items()}
+
     def wait_ack(self, seq, timeout):
         """(accepted, text) of the server's event for command `seq`."""
         deadline = time.monotonic() + timeout
@@ -246,10 +257,8 @@ class Client:
             return sent
         if mode != "positions":
             raise ValueError(f"mode must be auto, commands or positions, not {mode!r}")
-        for finger, (times, points) in enumerate(positions_from_haptics(samples, speed, lead)):
-            if times:
-                sent.append(self.inject_trajectory(finger, times, points))
-        return sent
+        per = {f: tp for f, tp in enumerate(positions_from_haptics(samples, speed, lead)) if tp[0]}
+        return list(self.inject_trajectories(per).values())
 
     # --- lifetime ------------------------------------------------------------------------------
     def close(self):
