@@ -13,6 +13,7 @@
 #include <iostream>
 #include <optional>
 #include <sstream>
+#include <tuple>
 
 #include <CLI/CLI.hpp>
 
@@ -121,7 +122,11 @@ int main(int argc, char** argv) {
   cli.add_flag("--no-fingers", no_fingers, "do not draw the fingertips");
   cli.add_flag("--no-colorbar", no_colorbar, "do not draw the colour bar");
   cli.add_flag("--no-label", no_label, "do not write time and forces on the picture");
-  CLI11_PARSE(cli, argc, argv);
+  try {
+    cli.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return cli.exit(e) == 0 ? 0 : 1;  // --help: 0; any option error: 1
+  }
 
   const std::string me = "hapticloth-render: ";
   if (log.empty() && endpoint.empty()) {
