@@ -40,8 +40,16 @@ int exec_sibling(const char* program, int argc, char** argv) {
 int main(int argc, char** argv) {
   using namespace hapticloth;
   if (argc >= 2 && std::string(argv[1]) == "udp") return exec_sibling("hapticloth-bench-udp", argc, argv);
-  if (argc >= 2 && std::string(argv[1]) == "transport")
-    return exec_sibling("hapticloth-bench-transport", argc, argv);
+  if (argc >= 2 && std::string(argv[1]) == "transport") {
+    // The transport benchmark's subscriber side is Python (the client package in .venv).
+    const std::string py = std::string(HAPTICLOTH_SOURCE_DIR) + "/.venv/bin/hapticloth-bench-transport";
+    std::vector<char*> args{const_cast<char*>(py.c_str())};
+    for (int i = 2; i < argc; ++i) args.push_back(argv[i]);
+    args.push_back(nullptr);
+    ::execv(py.c_str(), args.data());
+    std::cerr << "hapticloth-bench: cannot run " << py << " (run tools/setup)\n";
+    return 2;
+  }
 
   CLI::App cli{"hapticloth-bench: benchmarks with machine-readable output"};
   cli.require_subcommand(1);
