@@ -1,6 +1,8 @@
 // hapticloth-server: loads a scene and runs the cloth simulation, headless or with a haptic
 // device (mock, udp, replay, ...) in the 1 kHz haptic loop.
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
 
 #include <CLI/CLI.hpp>
@@ -43,7 +45,9 @@ int main(int argc, char** argv) {
   auto* zl = cli.add_option("--zenoh-listen", tr.zenoh_listen, "zenoh endpoint to listen on without a config file (default tcp/127.0.0.1:7447)");
   cli.add_flag("--no-zenoh", no_zenoh, "do not publish over zenoh");
   cli.add_option("--lcm-url", tr.lcm_url, "also publish on this LCM provider (e.g. udpm://239.255.76.67:7667?ttl=0)");
-  cli.add_option("--lcm-log", tr.lcm_log, "write an LCM log of the run (every message) to this file");
+  bool no_lcm_log = false;
+  cli.add_option("--lcm-log", tr.lcm_log, "LCM log of the run (every message); default out/<scene>.lcm");
+  cli.add_flag("--no-lcm-log", no_lcm_log, "do not write the LCM log");
   cli.add_option("--cloth-rate", tr.cloth_rate, "Hz, cloth state messages (default 60)");
   cli.add_option("--max-command-speed", tr.max_command_speed, "m/s, fastest injected fingertip trajectory (default 1)");
   // --- end transport
@@ -76,6 +80,20 @@ int main(int argc, char** argv) {
     if (!replay.empty()) scene.device.replay_path = replay;
     if (!udp_bind.empty()) scene.device.udp_bind = udp_bind;
     if (no_rt) scene.haptics.try_realtime = false;
+    if (no_lcm_log) {
+      tr.lcm_log.clear();
+    } else if (tr.lcm_log.empty()) {
+      // By default every session leaves a real LCM log (file:// provider) that lcm-logplayer
+      // and Python's lcm.EventLog read, in out/ under the current directory.
+      std::error_code ec;
+      std::filesystem::create_directories("out", ec);
+      const std::string path = "out/" + scene.name + ".lcm";
+      if (!ec && std::ofstream(path, std::ios::app)) {
+        tr.lcm_log = path;
+      } else {
+        std::cerr << "hapticloth-server: cannot write " << path << "; running without the LCM log\n";
+      }
+    }
     app::ServeOptions so;
     so.duration = duration;
     so.realtime = !fast;

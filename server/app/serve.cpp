@@ -84,6 +84,15 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
 
   // --- transport: the Hub publishes the session over zenoh / LCM and feeds the remote device
   std::unique_ptr<transport::Hub> hub;
+  // The device's dropped-packet total, handed to the Hub (which publishes an event when it
+  // grows) from the haptic thread, the thread that also writes the counters.
+  struct DropReporter : haptics::SessionObserver {
+    const devices::Device* dev = nullptr;
+    transport::Hub* hub = nullptr;
+    void on_loop_stats(const haptics::LoopStats&) noexcept override {
+      if (hub && dev) hub->note_dropped_packets(dev->counters().dropped_total());
+    }
+  } drops;
   {
     transport::SceneInfo info;
     transport::set_cloth(info, scene.mesh, scene.material);
@@ -102,7 +111,10 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
       hub = transport::make_hub(to, info);
     }
     if (auto* sink = dynamic_cast<devices::RemoteCommandSink*>(&dev.device())) hub->set_command_sink(sink);
+    drops.dev = &dev.device();
+    drops.hub = hub.get();
     session.add_observer(hub.get());
+    session.add_observer(&drops);
     hub->post_event("started", "scene " + scene.name + ", device " + dev.info().name);
     if (!opt.json) {
       const auto& o = hub->options();
