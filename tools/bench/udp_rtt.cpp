@@ -53,13 +53,9 @@ timespec to_timespec(Nanos t) {
   return {static_cast<time_t>(t / 1'000'000'000), static_cast<long>(t % 1'000'000'000)};
 }
 
-/// Sleeps to 150 us before t, then spins to t: the server's haptic loop wakes the same way
-/// (server/haptics/session.cpp), since the kernel's wake-up is late by tens of microseconds.
 void sleep_until(Nanos t) {
-  const timespec ts = to_timespec(t - 150'000);
+  const timespec ts = to_timespec(t);
   while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
-  }
-  while (now_ns() < t) {
   }
 }
 
