@@ -30,4 +30,16 @@ struct DeviceOptions {
   std::string replay_path;            ///< device log CSV to play back
 };
 
+/// The DeviceInfo of a driver whose limits come from the options (mock, replay, remote).
+inline DeviceInfo device_info(const DeviceOptions& o, const char* name) {
+  DeviceInfo i;
+  i.name = name;
+  i.fingers = o.fingers;
+  i.workspace = o.workspace;
+  i.max_force = o.max_force;
+  i.max_stiffness = o.max_stiffness;
+  i.nominal_rate = o.rate;
+  return i;
+}
+
 }  // namespace hapticloth::devices

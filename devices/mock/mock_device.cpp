@@ -5,23 +5,10 @@
 
 namespace hapticloth::devices {
 
-namespace {
-DeviceInfo info_from(const DeviceOptions& o, const char* name) {
-  DeviceInfo i;
-  i.name = name;
-  i.fingers = o.fingers;
-  i.workspace = o.workspace;
-  i.max_force = o.max_force;
-  i.max_stiffness = o.max_stiffness;
-  i.nominal_rate = o.rate;
-  return i;
-}
-}  // namespace
-
-MockDevice::MockDevice(const DeviceOptions& opt) : opt_(opt), info_(info_from(opt, "mock")) {}
+MockDevice::MockDevice(const DeviceOptions& opt) : opt_(opt), info_(device_info(opt, "mock")) {}
 
 MockDevice::MockDevice(const DeviceOptions& opt, Trajectory tr)
-    : opt_(opt), info_(info_from(opt, "mock")), tr_(std::move(tr)), have_tr_(true) {}
+    : opt_(opt), info_(device_info(opt, "mock")), tr_(std::move(tr)), have_tr_(true) {}
 
 std::string MockDevice::configure() {
   if (opt_.fingers < 2 || opt_.fingers > kMaxFingers) return "mock: fingers must be 2 to 5";

@@ -16,14 +16,7 @@ std::string fmt(const Vec3& p) {
 }
 }  // namespace
 
-RemoteDevice::RemoteDevice(const DeviceOptions& opt) : opt_(opt) {
-  info_.name = "remote";
-  info_.fingers = opt.fingers;
-  info_.workspace = opt.workspace;
-  info_.max_force = opt.max_force;
-  info_.max_stiffness = opt.max_stiffness;
-  info_.nominal_rate = opt.rate;
-}
+RemoteDevice::RemoteDevice(const DeviceOptions& opt) : opt_(opt), info_(device_info(opt, "remote")) {}
 
 std::string RemoteDevice::configure() {
   if (opt_.fingers < 2 || opt_.fingers > kMaxFingers) return "remote: fingers must be 2 to 5";

@@ -5,14 +5,7 @@
 
 namespace hapticloth::devices {
 
-ReplayDevice::ReplayDevice(const DeviceOptions& opt) : opt_(opt) {
-  info_.name = "replay";
-  info_.fingers = opt.fingers;
-  info_.workspace = opt.workspace;
-  info_.max_force = opt.max_force;
-  info_.max_stiffness = opt.max_stiffness;
-  info_.nominal_rate = opt.rate;
-}
+ReplayDevice::ReplayDevice(const DeviceOptions& opt) : opt_(opt), info_(device_info(opt, "replay")) {}
 
 std::string ReplayDevice::configure() {
   if (opt_.replay_path.empty()) return "replay: no device log given (replay_path / --replay FILE)";
