@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from buildpaths import program
+
 from hapticloth import fit
 from hapticloth.fit import Spline, fit_curve
 
@@ -36,19 +38,9 @@ def cli(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=timeout)
 
 
-def server_binary() -> Path | None:
-    build = Path(os.environ.get("HAPTICLOTH_BUILD_DIR", REPO / "build"))
-    if not build.is_absolute():
-        build = REPO / build
-    exe = build / "hapticloth-server"
-    return exe if exe.is_file() and os.access(exe, os.X_OK) else None
-
-
 def run_server(material: Path, tmp: Path) -> subprocess.CompletedProcess:
     """Step the hanging square scene with `material` for 0.05 s; skips without a build."""
-    exe = server_binary()
-    if exe is None:
-        pytest.skip("hapticloth-server is not built")
+    exe = program("hapticloth-server")
     text, n = re.subn(r"(?m)^material\s*=.*$",
                       lambda _: "material = " + json.dumps(str(material.resolve())),
                       SCENE.read_text())

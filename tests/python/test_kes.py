@@ -5,11 +5,12 @@ the measured points are compared, and bad input gets a clear error and exit code
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 from pathlib import Path
 
 import pytest
+
+from buildpaths import program
 
 REPO = Path(__file__).resolve().parents[2]
 MEASURED = REPO / "tools" / "materials" / "measured"
@@ -17,19 +18,9 @@ LIBRARY = REPO / "tools" / "materials"
 FABRICS = sorted(p.stem for p in MEASURED.glob("*.csv"))
 
 
-def kes_binary() -> Path:
-    build = Path(os.environ.get("HAPTICLOTH_BUILD_DIR", REPO / "build"))
-    if not build.is_absolute():
-        build = REPO / build
-    exe = build / "hapticloth-kes"
-    if not exe.is_file():
-        pytest.skip("hapticloth-kes is not built")
-    return exe
-
-
 def kes(*args, timeout=300) -> subprocess.CompletedProcess:
-    return subprocess.run([str(kes_binary()), *map(str, args)], capture_output=True, text=True,
-                          timeout=timeout)
+    return subprocess.run([str(program("hapticloth-kes")), *map(str, args)], capture_output=True,
+                          text=True, timeout=timeout)
 
 
 @pytest.mark.parametrize("fabric", FABRICS)

@@ -8,7 +8,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
 import socket
 import subprocess
 import sys
@@ -17,19 +16,11 @@ from pathlib import Path
 
 import pytest
 
+from buildpaths import program
+
 REPO = Path(__file__).resolve().parents[2]
 RIG = REPO / "tools" / "fake_rig" / "hapticloth-fake-rig"
 SCENE = REPO / "tools" / "scenes" / "hanging_square.toml"
-
-
-def server_binary() -> Path:
-    build = Path(os.environ.get("HAPTICLOTH_BUILD_DIR", REPO / "build"))
-    if not build.is_absolute():
-        build = REPO / build
-    exe = build / "hapticloth-server"
-    if not exe.is_file():
-        pytest.skip("hapticloth-server is not built")
-    return exe
 
 
 def free_port() -> int:
@@ -49,7 +40,7 @@ def test_udp_rig_presses_the_cloth_through_the_server(tmp_path):
     traj.write_text("\n".join(rows) + "\n")
     log = tmp_path / "rig.csv"
     server = subprocess.Popen(
-        [str(server_binary()), "--scene", str(SCENE), "--device", "udp", "--udp-bind",
+        [str(program("hapticloth-server")), "--scene", str(SCENE), "--device", "udp", "--udp-bind",
          f"127.0.0.1:{port}", "--duration", "6", "--no-realtime", "--json"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
