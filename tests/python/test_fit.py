@@ -4,7 +4,6 @@ the fitted material library, and the error reports for bad input."""
 from __future__ import annotations
 
 import json
-import os
 import re
 import subprocess
 import sys
