@@ -3,8 +3,12 @@
 //   hapticloth-bench haptic [--scene FILE] [--duration S] --json
 //   hapticloth-bench udp [options of hapticloth-bench-udp] --json
 //   hapticloth-bench transport [options of hapticloth-bench-transport] --json
+//   hapticloth-bench accuracy [--quick] --json [--plot OUT.png]
+//   hapticloth-bench stability [--quick] [--random-steps N] --json [--plot OUT.png]
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <sstream>
 #include <vector>
@@ -13,6 +17,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "accuracy.hpp"
 #include "app/run_summary.hpp"
 #include "app/scene_file.hpp"
 #include "app/serve.hpp"
@@ -33,6 +38,26 @@ int exec_sibling(const char* program, int argc, char** argv) {
   ::execv(path.c_str(), args.data());
   std::cerr << "hapticloth-bench: cannot run " << path << " (is it built?)\n";
   return 2;
+}
+
+// Plots a benchmark's JSON with tools/bench/plot_bench.py (matplotlib in .venv).
+int plot(const std::string& json_path, const std::string& png) {
+  const std::string top = HAPTICLOTH_SOURCE_DIR;
+  const std::string cmd = "'" + top + "/.venv/bin/python' '" + top + "/tools/bench/plot_bench.py' '" +
+                          json_path + "' '" + png + "'";
+  const int rc = std::system(cmd.c_str());
+  if (rc != 0) std::cerr << "hapticloth-bench: plotting failed (" << cmd << ")\n";
+  return rc == 0 ? 0 : 1;
+}
+
+// Prints the result and writes it beside the plot when one is asked for.
+int finish(const nlohmann::json& j, bool json, const std::string& png) {
+  const std::string text = j.dump(json ? -1 : 1);
+  std::cout << text << "\n";
+  if (png.empty()) return 0;
+  const std::string jp = png.substr(0, png.rfind('.')) + ".json";
+  std::ofstream(jp) << j.dump() << "\n";
+  return plot(jp, png);
 }
 
 }  // namespace
@@ -75,9 +100,41 @@ int main(int argc, char** argv) {
   haptic->add_option("--scene", haptic_scene, "scene with a [device] table (default: the main job's)");
   haptic->add_option("--duration", haptic_duration, "s in real time (default 10)");
   haptic->add_flag("--json", json, "one JSON object on stdout");
+
+  auto* acc = cli.add_subcommand(
+      "accuracy", "work-precision: error against a reference run vs CPU time per simulated "
+                  "second, over dt, alpha, solver, tolerance and mesh resolution");
+  bool quick = false;
+  std::string png;
+  acc->add_flag("--quick", quick, "a reduced sweep (about a minute)");
+  acc->add_flag("--json", json, "one JSON object on one line");
+  acc->add_option("--plot", png, "also write this PNG (and the JSON beside it)");
+
+  auto* stab = cli.add_subcommand(
+      "stability", "stability stress map: dt x stiffness x fingertip speed x alpha, and long "
+                   "randomized fingertip trajectories");
+  long random_steps = 100000;
+  stab->add_flag("--quick", quick, "a reduced map");
+  stab->add_option("--random-steps", random_steps, "haptic ticks of each randomized run (default 1e5)")
+      ->check(CLI::PositiveNumber);
+  stab->add_flag("--json", json, "one JSON object on one line");
+  stab->add_option("--plot", png, "also write this PNG (and the JSON beside it)");
   CLI11_PARSE(cli, argc, argv);
 
   try {
+    if (*acc) {
+      bench::AccuracyOptions o;
+      o.quick = quick;
+      o.source_dir = HAPTICLOTH_SOURCE_DIR;
+      return finish(bench::accuracy(o), json, png);
+    }
+    if (*stab) {
+      bench::StabilityOptions o;
+      o.quick = quick;
+      o.random_steps = random_steps;
+      o.source_dir = HAPTICLOTH_SOURCE_DIR;
+      return finish(bench::stability(o), json, png);
+    }
     if (*haptic) {
       app::Scene scene = app::load_scene(haptic_scene);
       if (!scene.has_device) throw std::runtime_error(haptic_scene + ": no [device] table");

@@ -1,0 +1,36 @@
+// Work-precision and stability benchmarks of the cloth step and the haptic coupling
+// (`hapticloth-bench accuracy`, `hapticloth-bench stability`). Both print one JSON object.
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace hapticloth::bench {
+
+struct AccuracyOptions {
+  bool quick = false;      ///< a reduced sweep (about a minute) for tests and a first look
+  std::string source_dir;  ///< repository root (scenes and materials)
+  bool verbose = true;     ///< progress on stderr
+};
+
+/// Sweeps dt, alpha, solver and tolerance, and mesh resolution on three reference scenes
+/// (the hanging square released from flat, a one-finger press, a two-finger pinch-lift) and
+/// measures each run's error against a reference run (dt 0.05 ms, alpha 0.5, tight solve) and
+/// its CPU time per simulated second. Marks the Pareto front of each scene.
+nlohmann::json accuracy(const AccuracyOptions& opt);
+
+struct StabilityOptions {
+  bool quick = false;
+  std::string source_dir;
+  long random_steps = 100000;  ///< haptic ticks of the randomized-trajectory runs
+  bool verbose = true;
+};
+
+/// The stability stress map: dt x material stiffness (x1 .. x1000 the denim curves) x fingertip
+/// speed (up to 2 m/s) x alpha, each cell a scripted stroke through the hanging square, plus
+/// long randomized fingertip trajectories. Pass = no non-finite state, energy bounded,
+/// penetration within tolerance, no abandoned (restored) step.
+nlohmann::json stability(const StabilityOptions& opt);
+
+}  // namespace hapticloth::bench

@@ -1,0 +1,114 @@
+// Shared pieces of the accuracy and stability benchmarks: one run's settings, CPU clock,
+// the hanging square at any resolution.
+#pragma once
+
+#include <time.h>
+
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "app/scene_file.hpp"
+#include "cloth/integrator.hpp"
+#include "cloth/mesh.hpp"
+#include "cloth/solver.hpp"
+
+namespace hapticloth::bench {
+
+/// Settings of one run (what a sweep varies).
+struct RunConfig {
+  double dt = 1e-3;
+  double alpha = 1.0;
+  std::string solver = "pcg";
+  double tolerance = 1e-4;
+  bool float_matrix = true;
+  int max_iterations = 300;
+  int resolution = 22;      ///< quads per side of the 0.5 m square
+  bool local_patch = false;
+  double stiffness_scale = 1.0;
+  std::string sweep;        ///< which sweep the run belongs to
+};
+
+/// The scene's own settings (what the server runs by default).
+inline RunConfig default_config(const app::Scene& sc) {
+  RunConfig c;
+  c.dt = sc.integrator.dt;
+  c.alpha = sc.integrator.alpha;
+  c.solver = sc.solver;
+  c.tolerance = sc.pcg.tolerance;
+  c.float_matrix = sc.pcg.single_precision_matrix;
+  c.max_iterations = sc.pcg.max_iterations;
+  c.sweep = "defaults";
+  return c;
+}
+
+inline double cpu_seconds() {
+  timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+inline std::string fmt(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+
+inline std::string describe(const RunConfig& c) {
+  std::string s = "dt " + fmt(c.dt * 1e3) + " ms, alpha " + fmt(c.alpha) + ", " + c.solver;
+  if (c.solver == "pcg") s += " tol " + fmt(c.tolerance) + (c.float_matrix ? " float" : " double");
+  if (c.resolution != 22) s += ", " + std::to_string(2 * c.resolution * c.resolution) + " triangles";
+  if (c.local_patch) s += ", local patch";
+  if (c.stiffness_scale != 1.0) s += ", stiffness x" + fmt(c.stiffness_scale);
+  return s;
+}
+
+inline nlohmann::json config_json(const RunConfig& c) {
+  nlohmann::json j = {{"dt_ms", c.dt * 1e3}, {"alpha", c.alpha}, {"solver", c.solver},
+                      {"triangles", 2 * c.resolution * c.resolution}, {"sweep", c.sweep},
+                      {"label", describe(c)}};
+  if (c.solver == "pcg") {
+    j["pcg_tolerance"] = c.tolerance;
+    j["pcg_float_matrix"] = c.float_matrix;
+  }
+  if (c.local_patch) j["local_patch"] = true;
+  if (c.stiffness_scale != 1.0) j["stiffness_scale"] = c.stiffness_scale;
+  return j;
+}
+
+inline std::unique_ptr<cloth::LinearSolver> make_solver(const app::Scene&, const RunConfig& c) {
+  cloth::PcgOptions po;
+  po.tolerance = c.tolerance;
+  po.single_precision_matrix = c.float_matrix;
+  po.max_iterations = c.max_iterations;
+  return cloth::make_solver(c.solver, po);
+}
+
+inline std::unique_ptr<cloth::Integrator> make_integrator(const app::Scene& sc,
+                                                          const cloth::ClothModel& m,
+                                                          const RunConfig& c) {
+  cloth::IntegratorConfig ic = sc.integrator;
+  ic.dt = c.dt;
+  ic.alpha = c.alpha;
+  ic.validate();
+  return std::make_unique<cloth::Integrator>(m, ic, make_solver(sc, c));
+}
+
+/// The hanging square of tools/scenes/hanging_square.toml (0.5 m, flat at z = 0, top edge
+/// pinned) with n x n quads and the scene's material scaled by `stiffness_scale`.
+inline cloth::ClothModel grid_model(const app::Scene& sc, int n, double stiffness_scale = 1.0) {
+  cloth::GridSpec g;
+  g.width = g.height = 0.5;
+  g.nx = g.ny = n;
+  g.origin = {-0.25, -0.25, 0.0};
+  const cloth::Mesh mesh = cloth::make_grid(g);
+  cloth::Material mat = sc.material;
+  for (auto* c : {&mat.weft, &mat.warp, &mat.shear})
+    for (auto& row : c->B)
+      for (auto& b : row) b *= stiffness_scale;
+  return cloth::build_model(mesh, mat, cloth::grid_edge(mesh, "top"));
+}
+
+}  // namespace hapticloth::bench
