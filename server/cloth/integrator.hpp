@@ -106,6 +106,11 @@ class Integrator {
   std::vector<Vec3> xn_, vn_;              // candidate state of a (sub)step
   std::vector<Vec3> x_start_, v_start_;    // state at the start of step()
   double energy_old_ = 0.0, energy_scale_ = 0.0;
+  double excess_energy_ = 0.0, pending_excess_ = 0.0;  // energy created beyond the external work, 0.1 s memory
+  double prev_energy_ = 0.0, last_work_ = 0.0;  // total energy and work of the last accepted step
+  bool have_prev_energy_ = false;
+  std::vector<Vec3> x_before_;   // positions at the start of the previous step
+  bool have_before_ = false, blown_up_ = false;
 };
 
 }  // namespace hapticloth::cloth

@@ -51,6 +51,7 @@ void HapticLoop::finger_contact(int f, double now, double tick_dt, const Vec3& c
     if (!patch->active() || (c - patch->centre()).norm() > 0.5 * patch->params_radius()) {
       patch->rebuild(s, c);
       ++rebuilds_;
+      softened_ += patch->spring_scale() < 1.0;
     }
     const SurfacePoint sp = patch->closest(c);
     if (sp.triangle < 0) {

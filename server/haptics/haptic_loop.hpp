@@ -52,6 +52,8 @@ class HapticLoop {
   /// (default), or hold the last global state (the naive coupling, for comparison).
   void set_extrapolation(bool on) { extrapolate_ = on; }
   std::uint64_t patch_rebuilds() const { return rebuilds_; }
+  /// Patch builds whose springs were softened to stay stable (PatchParams::max_substeps).
+  std::uint64_t patch_softened() const { return softened_; }
 
   const HapticReport& last_report() const { return report_; }
   const devices::DeviceState& device_state() const { return state_; }
@@ -89,7 +91,7 @@ class HapticLoop {
   std::vector<std::unique_ptr<LocalPatch>> patch_;
   bool extrapolate_ = true;
   std::array<std::uint64_t, kMaxFingers> impacts_{};
-  std::uint64_t rebuilds_ = 0;
+  std::uint64_t rebuilds_ = 0, softened_ = 0;
   double last_now_ = -1.0;
   std::uint64_t tick_ = 0, device_errors_ = 0, overflows_ = 0, contact_ticks_ = 0, np_skipped_ = 0;
 };

@@ -25,6 +25,7 @@ LocalPatch::LocalPatch(const std::vector<std::array<int, 3>>& global_tris,
   edge_.assign(E, {0, 0});
   rest_len_.assign(E, 0.0);
   k_.assign(E, 0.0);
+  kv_.assign(V, 0.0);
   sel_.assign(T, 0);
   key_.assign(4 * V, {-1, -1, -1});
   wi_.assign(128, 0);
@@ -120,6 +121,35 @@ void LocalPatch::rebuild(const ClothSnapshot& s, const Vec3& c) noexcept {
     x_[v] = 0.5 * (s.x[ga_[v]] + s.x[gb_[v]]);
     v_[v] = 0.5 * (s.v[ga_[v]] + s.v[gb_[v]]);
   }
+  // Substeps for a stable explicit step: omega_max h < 2, with omega_max^2 bounded by
+  // Gershgorin as max over interior vertices of 2 (sum of spring stiffness) / m plus the
+  // fingertip spring on the lightest vertex. Taken so that omega_max h <= 1 (margin for the
+  // damping terms). Beyond max_substeps the springs are softened instead: a patch stiffer than
+  // the fingertip spring (the device's renderable stiffness) does not change what is felt.
+  for (int v = 0; v < nv_; ++v) kv_[v] = 0.0;
+  for (int e = 0; e < ne_; ++e) {
+    kv_[edge_[e][0]] += k_[e];
+    kv_[edge_[e][1]] += k_[e];
+  }
+  double w2_springs = 0.0, m_min = 1e300;
+  for (int v = 0; v < nv_; ++v) {
+    if (border_[v] || m_[v] <= 0.0) continue;
+    w2_springs = std::max(w2_springs, 2.0 * kv_[v] / m_[v]);
+    m_min = std::min(m_min, m_[v]);
+  }
+  const double tick = 1e-3;
+  const double w2_contact = m_min < 1e300 ? p_.contact_stiffness / m_min : 0.0;
+  const double needed = std::ceil(tick * std::sqrt(w2_springs + w2_contact));
+  const int lo = std::max(1, p_.substeps), hi = std::max(lo, p_.max_substeps);
+  spring_scale_ = 1.0;
+  if (needed <= hi) {
+    substeps_ = std::max(lo, static_cast<int>(needed));
+  } else {
+    substeps_ = hi;
+    const double w2_allowed = (hi / tick) * (hi / tick);
+    spring_scale_ = std::max(0.0, w2_allowed - w2_contact) / w2_springs;
+    for (int e = 0; e < ne_; ++e) k_[e] *= spring_scale_;
+  }
   double el = 0.0;
   for (int e = 0; e < ne_; ++e) el += rest_len_[e];
   edge_mean_ = ne_ ? el / ne_ : 0.0;
@@ -156,7 +186,7 @@ Vec3 LocalPatch::step(const ClothSnapshot& s, double now, bool contact, const Ve
   if (nt_ == 0) return Vec3::Zero();
   const double tick = 1e-3;
   border_positions(s, now);
-  const int n = std::max(1, p_.substeps);
+  const int n = substeps_;
   const double h = tick / n;
   const bool touching = contact && tri >= 0 && tri < nt_;
   // The touched point and its neighbourhood: the contact force is spread over the patch

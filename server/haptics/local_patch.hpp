@@ -24,7 +24,11 @@ struct PatchParams {
   double damping = 300.0;      ///< 1/s: interior velocity damped towards the global cloth's (the
                                ///< spring network has no bending: this keeps it from crumpling)
   double contact_damping = 1.0;  ///< N s/m on the touched point's normal motion in the patch
-  int substeps = 32;           ///< per haptic tick (explicit integration: stable for omega h < 2)
+  int substeps = 32;           ///< per haptic tick, at least (explicit integration: stable for
+                               ///< omega h < 2; more are taken when the springs need them)
+  int max_substeps = 256;      ///< per haptic tick, at most: a stiffer patch has its springs
+                               ///< softened to what this many substeps integrate stably
+  double contact_stiffness = 2000.0;  ///< N/m, the fingertip spring (for the stability bound)
   int max_triangles = 192;     ///< global triangles per patch (4x as many refined ones)
 };
 
@@ -45,6 +49,10 @@ class LocalPatch {
   bool active() const { return nt_ > 0; }
   const Vec3& centre() const { return centre_; }
   double params_radius() const { return p_.radius; }
+  /// Substeps per tick of the current build, and the factor its springs were softened by to
+  /// stay stable within max_substeps (1: not softened).
+  int substeps() const { return substeps_; }
+  double spring_scale() const { return spring_scale_; }
   int triangles() const { return nt_; }
   int vertices() const { return nv_; }
   /// Builds the patch around `c` from snapshot `s` (interior state from the snapshot).
@@ -85,6 +93,9 @@ class LocalPatch {
   std::vector<int> sel_;                    // selected global triangles
   std::vector<std::array<int, 3>> key_;     // hash table (ga, gb, patch vertex)
   double edge_mean_ = 0.0;
+  int substeps_ = 32;                       // this build's substeps per tick
+  double spring_scale_ = 1.0;               // < 1: springs softened for stability
+  std::vector<double> kv_;                  // per vertex: sum of its springs' stiffness
   std::vector<int> wi_;                     // contact kernel: vertices, weights, start positions
   std::vector<double> ww_;
   std::vector<Vec3> x0_;

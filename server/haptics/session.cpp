@@ -65,6 +65,7 @@ Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& 
     PatchParams p = sc_.patch;
     p.areal_density = model.material.areal_density;
     p.stiffness = 0.5 * (model.material.weft.B[0][1] + model.material.warp.B[0][1]);
+    p.contact_stiffness = sc_.finger.stiffness;
     // The patch reaches the force-spreading kernel's radius (2 mean edges), at least 2 fingertip
     // radii: enough triangles to hold the dent, few enough to step 32 times a millisecond.
     if (!(sc_.patch.radius > 0.0)) p.radius = std::max(2.0 * sc_.finger.radius, sim_->kernel_radius());
@@ -169,6 +170,8 @@ SessionReport Session::report() const {
   r.sim_steps = sim_->steps();
   r.contact_ticks = loop_->contact_ticks();
   r.narrow_phase_skipped = loop_->narrow_phase_skipped();
+  r.patch_rebuilds = loop_->patch_rebuilds();
+  r.patch_softened = loop_->patch_softened();
   r.device_errors = loop_->device_errors();
   r.candidate_overflows = loop_->candidate_overflows();
   return r;
@@ -190,6 +193,9 @@ std::string SessionReport::to_text() const {
   os << "contact ticks    " << contact_ticks << " (slipping " << slip_ticks << "), max force "
      << max_force << " N\n";
   os << "narrow phase     skipped on " << narrow_phase_skipped << " ticks (no finger near the cloth)\n";
+  if (patch_rebuilds > 0)
+    os << "local patch      " << patch_rebuilds << " builds, " << patch_softened
+       << " with springs softened to stay stable (material stiffer than max_substeps integrate)\n";
   os << "scheduling       " << scheduling_note << (memory_locked ? ", memory locked" : "") << "\n";
   return os.str();
 }
@@ -210,6 +216,8 @@ std::string SessionReport::to_json() const {
   j["slip_ticks"] = slip_ticks;
   j["max_force_n"] = max_force;
   j["narrow_phase_skipped"] = narrow_phase_skipped;
+  j["patch_rebuilds"] = patch_rebuilds;
+  j["patch_softened"] = patch_softened;
   j["device_errors"] = device_errors;
   j["realtime_scheduling"] = realtime_scheduling;
   j["memory_locked"] = memory_locked;

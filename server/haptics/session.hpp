@@ -40,6 +40,7 @@ struct SessionReport {
   Histogram sim_step_us;
   std::uint64_t sim_steps = 0, contact_ticks = 0, slip_ticks = 0, narrow_phase_skipped = 0;
   std::uint64_t device_errors = 0, candidate_overflows = 0;
+  std::uint64_t patch_rebuilds = 0, patch_softened = 0;  ///< local patch builds (4.2)
   double max_force = 0.0;          ///< N, largest force sent to a finger
   double sim_time = 0.0;           ///< simulated seconds
   bool realtime_scheduling = false;

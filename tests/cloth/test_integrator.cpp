@@ -244,6 +244,46 @@ TEST(IntegratorRecovery, EnergyExplosionIsDetected) {
   for (const auto& x : s.x) EXPECT_TRUE(x.allFinite());
 }
 
+// A solver whose answer overshoots by a fixed factor: every step gains a fraction of the
+// energy, too little for the per-step test, so only the summed excess can catch it.
+class OvershootingSolver : public cloth::LinearSolver {
+ public:
+  explicit OvershootingSolver(double f) : inner_(cloth::make_cholmod_solver()), f_(f) {}
+  const char* name() const override { return "overshooting"; }
+  void analyze(const cloth::SymCsr& A) override { inner_->analyze(A); }
+  cloth::SolveStatus solve(const cloth::SymCsr& A, const double* b, double* x) override {
+    const auto st = inner_->solve(A, b, x);
+    for (int i = 0; i < A.n; ++i) x[i] *= f_;
+    return st;
+  }
+
+ private:
+  std::unique_ptr<cloth::LinearSolver> inner_;
+  double f_;
+};
+
+TEST(IntegratorRecovery, SlowBlowUpIsCaught) {
+  const auto m = drum(test::denim(), 8);
+  cloth::IntegratorConfig cfg;
+  cfg.dt = 0.005;
+  cfg.alpha = 0.5;
+  cfg.max_halvings = 1;
+  cloth::Integrator integ(m, cfg, std::make_unique<OvershootingSolver>(1.3));
+  cloth::ClothState s = smooth_start(m);
+  double max_ke = 0.0;
+  for (int k = 0; k < 400; ++k) {
+    integ.step(s);
+    max_ke = std::max(max_ke, cloth::compute_energies(m, s, cfg.gravity).kinetic);
+  }
+  const auto& ev = integ.events();
+  EXPECT_GT(ev.energy_explosions, 0u);
+  EXPECT_GT(ev.restores, 0u);
+  for (const auto& x : s.x) EXPECT_TRUE(x.allFinite());
+  // the kinetic energy stays bounded (the explosion limit is 10x the energy floor, about 2 J
+  // here); without the energy-balance check it reaches 1e72 J
+  EXPECT_LT(max_ke, 5.0);
+}
+
 TEST(IntegratorConfig, RejectsBadSettings) {
   cloth::IntegratorConfig c;
   c.alpha = 0.3;

@@ -33,4 +33,15 @@ struct StabilityOptions {
 /// penetration within tolerance, no abandoned (restored) step.
 nlohmann::json stability(const StabilityOptions& opt);
 
+struct LimitOptions {
+  bool quick = false;
+  std::string source_dir;
+  bool verbose = true;
+};
+
+/// For the hanging square at about 1k, 4k and 16k triangles: our whole step (CHOLMOD and PCG)
+/// against CHOLMOD's own analyze / factorize / solve of the same eq. 9 matrix (simplicial and
+/// supernodal), the overhead ratio, and the factorization's flop count and fill.
+nlohmann::json limit(const LimitOptions& opt);
+
 }  // namespace hapticloth::bench

@@ -5,6 +5,7 @@
 //   hapticloth-bench transport [options of hapticloth-bench-transport] --json
 //   hapticloth-bench accuracy [--quick] --json [--plot OUT.png]
 //   hapticloth-bench stability [--quick] [--random-steps N] --json [--plot OUT.png]
+//   hapticloth-bench limit [--quick] --json
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -119,6 +120,12 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   stab->add_flag("--json", json, "one JSON object on one line");
   stab->add_option("--plot", png, "also write this PNG (and the JSON beside it)");
+
+  auto* lim = cli.add_subcommand(
+      "limit", "our whole step against CHOLMOD's own factorize and solve of the same matrix, "
+               "per mesh size, with the factorization's flop count");
+  lim->add_flag("--quick", quick, "a few steps per size");
+  lim->add_flag("--json", json, "one JSON object on one line");
   CLI11_PARSE(cli, argc, argv);
 
   try {
@@ -134,6 +141,12 @@ int main(int argc, char** argv) {
       o.random_steps = random_steps;
       o.source_dir = HAPTICLOTH_SOURCE_DIR;
       return finish(bench::stability(o), json, png);
+    }
+    if (*lim) {
+      bench::LimitOptions o;
+      o.quick = quick;
+      o.source_dir = HAPTICLOTH_SOURCE_DIR;
+      return finish(bench::limit(o), json, "");
     }
     if (*haptic) {
       app::Scene scene = app::load_scene(haptic_scene);

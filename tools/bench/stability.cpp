@@ -27,6 +27,7 @@ struct Outcome {
   double max_force = 0.0;        // N, rendered
   double cpu = 0.0, sim = 0.0;
   long contact_ticks = 0;
+  long contact_checks = 0, deep_checks = 0;  // global steps with a finger in contact; of them, deeper than tol
   cloth::IntegratorEvents events;
 };
 
@@ -55,7 +56,7 @@ cloth::ClothState settle(const app::Scene& sc, const cloth::ClothModel& m) {
 }
 
 Outcome run(const app::Scene& sc, const cloth::ClothModel& m, const cloth::ClothState& start,
-            const devices::Trajectory& script, const RunConfig& c, double duration) {
+            const devices::Trajectory& script, const RunConfig& c, double duration, double pen_tol) {
   haptics::SessionConfig hc = sc.haptics;
   hc.try_realtime = false;
   hc.local_patch = c.local_patch;
@@ -89,8 +90,12 @@ Outcome run(const app::Scene& sc, const cloth::ClothModel& m, const cloth::Cloth
       if (o.finite) {
         o.max_kinetic = std::max(o.max_kinetic, cloth::compute_energies(m, s, Vec3::Zero()).kinetic);
         for (int f = 0; f < h.fingers(); ++f)
-          if (rep.finger[f].in_contact)
-            o.max_penetration = std::max(o.max_penetration, r - distance_to_cloth(rep.finger[f].proxy, s.x, m));
+          if (rep.finger[f].in_contact) {
+            const double pen = r - distance_to_cloth(rep.finger[f].proxy, s.x, m);
+            o.max_penetration = std::max(o.max_penetration, pen);
+            ++o.contact_checks;
+            o.deep_checks += pen > pen_tol;
+          }
       }
     }
     ++tick;
@@ -156,6 +161,8 @@ json verdict(const Outcome& o, double energy_bound, double penetration_tol) {
             {"max_penetration_mm", o.max_penetration * 1e3},
             {"max_force_n", o.max_force},
             {"contact_ticks", o.contact_ticks},
+            {"contact_checks", o.contact_checks},
+            {"penetration_over_tol_checks", o.deep_checks},
             {"retries", o.events.retries},
             {"restores", o.events.restores},
             {"solver_not_converged", o.events.solver_not_converged},
@@ -200,7 +207,7 @@ json stability(const StabilityOptions& opt) {
           // patch (4.2) beyond it.
           c.local_patch = dt * sc.haptics.haptic_rate > 1.0 + 1e-9;
           say(describe(c) + ", finger " + fmt(v) + " m/s");
-          const Outcome o = run(sc, m, start, script, c, script.duration());
+          const Outcome o = run(sc, m, start, script, c, script.duration(), pen_tol);
           json j = config_json(c);
           j["stiffness_scale"] = k;
           j["finger_speed"] = v;
@@ -223,7 +230,7 @@ json stability(const StabilityOptions& opt) {
       RunConfig c = default_config(sc);
       c.sweep = "random";
       say("random trajectory seed " + std::to_string(seed) + ", " + std::to_string(opt.random_steps) + " ticks");
-      const Outcome o = run(sc, m, start, random_walk(seed, seconds, v_max), c, seconds);
+      const Outcome o = run(sc, m, start, random_walk(seed, seconds, v_max), c, seconds, pen_tol);
       json j = config_json(c);
       j["seed"] = seed;
       j["ticks"] = opt.random_steps;

@@ -1,0 +1,124 @@
+"""Tests of the physics the benchmarks measure (hapticloth-bench accuracy, stability, limit in
+their --quick forms): errors fall with the step as the integrator's order says, the solver
+tolerance of the defaults does not dominate the error, the local patch renders a press that
+direct coupling at a long step gets wrong, the stress map's cells hold together, and CHOLMOD's
+own factorization of our matrix is what our CHOLMOD step costs at the core. Timing figures are
+printed by the benchmarks, never asserted here."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+
+import pytest
+
+from buildpaths import program
+
+
+def bench(*args, timeout=900) -> dict:
+    r = subprocess.run([str(program("hapticloth-bench")), *args, "--json"], capture_output=True,
+                       text=True, timeout=timeout)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return json.loads(r.stdout)
+
+
+@pytest.fixture(scope="module")
+def accuracy():
+    return bench("accuracy", "--quick")
+
+
+def runs(j, scene, sweep):
+    return [r for r in j["scenes"][scene]["runs"] if r["sweep"] == sweep]
+
+
+def find(rs, **kw):
+    out = [r for r in rs if all(math.isclose(r[k], v) if isinstance(v, float) else r[k] == v
+                                for k, v in kw.items())]
+    assert len(out) == 1, (kw, [r["label"] for r in rs])
+    return out[0]
+
+
+def test_release_error_falls_with_the_step(accuracy):
+    rs = runs(accuracy, "release", "dt-alpha")
+    for alpha in (0.5, 1.0):
+        errs = [find(rs, dt_ms=dt, alpha=alpha)["pos_err_mm"] for dt in (1.0, 5.0, 20.0, 40.0)]
+        assert errs == sorted(errs), (alpha, errs)
+    # backward Euler is first order: 5x the step gives about 5x the error (3x-7x)
+    e1 = find(rs, dt_ms=1.0, alpha=1.0)["pos_err_mm"]
+    e5 = find(rs, dt_ms=5.0, alpha=1.0)["pos_err_mm"]
+    assert 3.0 < e5 / e1 < 7.0, (e1, e5)
+    # alpha 0.5 (second order) is more accurate at the same step
+    assert find(rs, dt_ms=1.0, alpha=0.5)["pos_err_mm"] < 0.7 * e1
+    assert all(r["stable"] for r in rs)
+
+
+def test_solver_tolerance_does_not_dominate(accuracy):
+    rs = runs(accuracy, "release", "solver")
+    exact = find(rs, solver="cholmod")["pos_err_mm"]
+    default = find(rs, solver="pcg", pcg_tolerance=1e-4, pcg_float_matrix=True)["pos_err_mm"]
+    assert abs(default - exact) < 0.01 * exact, (default, exact)
+
+
+def test_finer_mesh_is_closer_to_the_finest(accuracy):
+    rs = runs(accuracy, "release", "resolution")
+    coarse = find(rs, triangles=242)["pos_err_mm"]
+    default = find(rs, triangles=968)["pos_err_mm"]
+    assert default < coarse
+
+
+def test_press_force(accuracy):
+    ref_force = accuracy["scenes"]["press"]["reference_max_force_n"]
+    assert ref_force > 0.2  # the finger really presses the drum
+    direct = find(runs(accuracy, "press", "dt-alpha"), dt_ms=1.0, alpha=1.0)
+    assert direct["force_err_rel"] < 0.3
+    patch = find(runs(accuracy, "press", "local-patch"), dt_ms=20.0)
+    naive = find(runs(accuracy, "press", "direct-long-step"), dt_ms=20.0)
+    # direct coupling with a 20 ms global step rings (limit cycle); the local patch does not
+    assert naive["force_err_rel"] > 2.0
+    assert patch["force_err_rel"] < 0.5
+    assert not naive["pareto"]
+
+
+def test_pinch_force_at_the_haptic_rate(accuracy):
+    direct = find(runs(accuracy, "pinch", "dt-alpha"), dt_ms=1.0, alpha=1.0)
+    assert direct["force_err_rel"] < 0.15
+    assert accuracy["scenes"]["pinch"]["reference_max_force_n"] > 1.0
+
+
+def test_pareto_front(accuracy):
+    for name, sc in accuracy["scenes"].items():
+        front = [r for r in sc["runs"] if r["pareto"]]
+        assert front, name
+        assert all(r["stable"] for r in front)
+        # no front run is beaten on both axes by another stable candidate
+        key = "pos_err_mm" if name == "release" else "force_err_rel"
+        for r in front:
+            for o in sc["runs"]:
+                if o is r or not o["stable"] or o["sweep"] == "direct-long-step":
+                    continue
+                assert not (o["cpu_s_per_sim_s"] < r["cpu_s_per_sim_s"] and o[key] < r[key])
+
+
+def test_stability_quick_map():
+    j = bench("stability", "--quick", "--random-steps", "3000")
+    assert len(j["cells"]) == 8
+    for c in j["cells"]:
+        assert c["restores"] == 0, c["label"]
+        assert c["max_kinetic_j"] <= c["energy_bound_j"], c["label"]
+        assert c.get("failure", "").find("non-finite") < 0, c["label"]
+        if c["dt_ms"] == 1.0:  # direct coupling at the haptic rate passes everything
+            assert c["pass"], c
+    for r in j["random"]:
+        assert "non-finite" not in r.get("failure", "")
+        assert r["max_kinetic_j"] <= r["energy_bound_j"]
+
+
+def test_limit_quick():
+    j = bench("limit", "--quick")
+    assert [r["scene"] for r in j["rows"]] == ["hanging_square", "hanging_square_4k", "hanging_square_16k"]
+    flops = [r["cholmod_simplicial"]["flops"] for r in j["rows"]]
+    assert all(f > 0 for f in flops) and flops == sorted(flops)
+    for r in j["rows"]:
+        assert r["cholmod_simplicial"]["ok"] and r["cholmod_supernodal"]["ok"]
+        assert r["cholmod_simplicial"]["nnz_L"] >= r["nnz_A"] / 2
