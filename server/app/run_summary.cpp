@@ -91,6 +91,7 @@ std::string RunSummary::to_json() const {
                  {"not_positive_definite", events.not_positive_definite},
                  {"jacobian_fallbacks", events.jacobian_fallbacks},
                  {"energy_explosions", events.energy_explosions},
+                 {"alpha_fallbacks", events.alpha_fallbacks},
                  {"retries", events.retries},
                  {"restores", events.restores}};
   return j.dump();

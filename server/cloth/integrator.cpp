@@ -45,7 +45,7 @@ inline __attribute__((always_inline)) void sym_rank1(Sym3& S, double c, const do
 // Only the blocks k <= l are formed; (l, k) is written as the transpose.
 template <bool kViscous, bool kSpd>
 double Integrator::assemble_elements(const ClothState& s, double h) {
-  const double a = cfg_.alpha, ah = a * h, aahh = a * a * h * h;
+  const double a = alpha_, ah = a * h, aahh = a * a * h * h;
   const Material& mat = model_.material;
   const double eta_u = mat.weft.viscosity, eta_v = mat.warp.viscosity, eta_s = mat.shear.viscosity;
   double* const Aval = A_.val.data();
@@ -237,6 +237,7 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
                        std::unique_ptr<LinearSolver> solver)
     : model_(model), cfg_(config), solver_(std::move(solver)) {
   cfg_.validate();
+  alpha_ = cfg_.alpha;
   if (!solver_) throw std::invalid_argument("integrator: a linear solver is required");
   viscous_ = model_.material.viscous();
   A_ = model_.pattern;
@@ -277,7 +278,7 @@ bool Integrator::state_finite(const ClothState& s) const {
 }
 
 bool Integrator::assemble(const ClothState& s, double h, JacobianMode mode) {
-  const double ah = cfg_.alpha * h;
+  const double ah = alpha_ * h;
   std::memset(A_.val.data(), 0, sizeof(double) * A_.val.size());
   rhs_.setZero();
   const bool spd = mode == JacobianMode::Spd;
@@ -382,7 +383,7 @@ Integrator::Attempt Integrator::single_step(ClothState& s, double h) {
   }
 
   // Eq. 9 update: dv from the solve, dx = h (v + alpha dv).
-  const double a = cfg_.alpha;
+  const double a = alpha_;
   double ke = 0.0, eg = 0.0, work = 0.0;
   for (int i = 0; i < model_.num_vertices(); ++i) {
     const int f = model_.free_index[i];
@@ -425,9 +426,17 @@ Integrator::Attempt Integrator::single_step(ClothState& s, double h) {
 }
 
 Integrator::Attempt Integrator::advance(ClothState& s, double h, int depth) {
+  const std::uint64_t explosions = events_.energy_explosions;
   if (single_step(s, h) == Attempt::Ok) return Attempt::Ok;
   if (depth >= cfg_.max_halvings) return Attempt::Failed;
   ++events_.retries;
+  // An energy explosion at alpha < 1 (little numerical damping: the step can ring with a stiff
+  // law; hapticloth-bench stability, alpha 0.5 at 1000x denim) is retried with backward Euler
+  // (alpha 1, L-stable), which the integrator keeps from then on: counted, never silent.
+  if (events_.energy_explosions > explosions && alpha_ < 1.0) {
+    alpha_ = 1.0;
+    ++events_.alpha_fallbacks;
+  }
   if (advance(s, 0.5 * h, depth + 1) == Attempt::Failed) return Attempt::Failed;
   return advance(s, 0.5 * h, depth + 1);
 }

@@ -34,11 +34,12 @@ struct IntegratorEvents {
   std::uint64_t not_positive_definite = 0;
   std::uint64_t jacobian_fallbacks = 0;   ///< exact Jacobian indefinite: re-solved with Spd
   std::uint64_t energy_explosions = 0;
+  std::uint64_t alpha_fallbacks = 0;      ///< explosions at alpha < 1 after which alpha is 1
   std::uint64_t retries = 0;              ///< failed (sub)steps retried at half the step
   std::uint64_t restores = 0;             ///< steps abandoned: last good state restored, at rest
   std::uint64_t total() const {
     return non_finite + solver_not_converged + solver_error + not_positive_definite +
-           jacobian_fallbacks + energy_explosions + retries + restores;
+           jacobian_fallbacks + energy_explosions + alpha_fallbacks + retries + restores;
   }
 };
 
@@ -111,6 +112,7 @@ class Integrator {
   bool have_prev_energy_ = false;
   std::vector<Vec3> x_before_;   // positions at the start of the previous step
   bool have_before_ = false, blown_up_ = false;
+  double alpha_ = 1.0;  // alpha in use: cfg_.alpha, or 1 from the first explosion on
 };
 
 }  // namespace hapticloth::cloth

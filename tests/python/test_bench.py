@@ -50,7 +50,11 @@ def test_release_error_falls_with_the_step(accuracy):
     assert 3.0 < e5 / e1 < 7.0, (e1, e5)
     # alpha 0.5 (second order) is more accurate at the same step
     assert find(rs, dt_ms=1.0, alpha=0.5)["pos_err_mm"] < 0.7 * e1
-    assert all(r["stable"] for r in rs)
+    for r in rs:
+        if r["dt_ms"] <= 20.0 or r["alpha"] == 1.0:
+            assert r["stable"], r["label"]
+        else:  # alpha 0.5 at 40 ms rings: caught as an explosion, finished at alpha 1
+            assert r["stable"] or r["events"]["alpha_fallbacks"] == 1, r
 
 
 def test_solver_tolerance_does_not_dominate(accuracy):
@@ -102,16 +106,24 @@ def test_pareto_front(accuracy):
 
 def test_stability_quick_map():
     j = bench("stability", "--quick", "--random-steps", "3000")
-    assert len(j["cells"]) == 8
+    assert len(j["cells"]) == 16
     for c in j["cells"]:
-        assert c["restores"] == 0, c["label"]
-        assert c["max_kinetic_j"] <= c["energy_bound_j"], c["label"]
-        assert c.get("failure", "").find("non-finite") < 0, c["label"]
-        if c["dt_ms"] == 1.0:  # direct coupling at the haptic rate passes everything
-            assert c["pass"], c
+        assert "non-finite" not in c.get("failure", ""), c["label"]
+        # a blow-up is caught on its first step and the integrator stays at alpha 1 after it:
+        # a few abandoned steps at most (without the fallback: 83-193 in these cells)
+        assert c["restores"] <= 5, c["label"]
+        assert c["alpha_fallbacks"] <= 1, c["label"]
+        if c["alpha"] == 1.0:
+            assert c["max_kinetic_j"] <= c["energy_bound_j"], c["label"]
+            assert c["restores"] == 0, c["label"]
+            if c["dt_ms"] == 1.0:  # direct coupling at the haptic rate passes everything
+                assert c["pass"], c
+        elif c["restores"]:  # alpha 0.5 on the 1000x stiffer cloth blows up, then is damped
+            assert c["alpha_fallbacks"] == 1 and c["stiffness_scale"] >= 100, c
     for r in j["random"]:
         assert "non-finite" not in r.get("failure", "")
         assert r["max_kinetic_j"] <= r["energy_bound_j"]
+        assert r["restores"] == 0
 
 
 def test_limit_quick():

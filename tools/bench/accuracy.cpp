@@ -152,6 +152,7 @@ json events_json(const cloth::IntegratorEvents& e) {
   return {{"retries", e.retries},
           {"restores", e.restores},
           {"energy_explosions", e.energy_explosions},
+          {"alpha_fallbacks", e.alpha_fallbacks},
           {"non_finite", e.non_finite},
           {"solver_not_converged", e.solver_not_converged},
           {"not_positive_definite", e.not_positive_definite}};
