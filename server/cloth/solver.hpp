@@ -37,7 +37,7 @@ struct PcgOptions {
   /// Keep the PCG's copy of the matrix in single precision (products still accumulate in
   /// double). Halves the memory each iteration streams; the solve then meets `tolerance` for
   /// a matrix within float rounding (relative 6e-8) of the assembled one, so use it only with
-  /// tolerances well above that (the scenes use 1e-4).
+  /// tolerances well above that (the scenes use 1e-3).
   bool single_precision_matrix = false;
 };
 

@@ -51,21 +51,29 @@ def test_release_error_falls_with_the_step(accuracy):
     # alpha 0.5 (second order) is more accurate at the same step
     assert find(rs, dt_ms=1.0, alpha=0.5)["pos_err_mm"] < 0.7 * e1
     for r in rs:
-        if r["dt_ms"] <= 20.0 or r["alpha"] == 1.0:
+        if r["dt_ms"] <= 5.0 or r["alpha"] == 1.0:
             assert r["stable"], r["label"]
-        else:  # alpha 0.5 at 40 ms rings: caught as an explosion, finished at alpha 1
+        else:  # alpha 0.5 at 20-40 ms rings: caught as an explosion, finished at alpha 1
             assert r["stable"] or r["events"]["alpha_fallbacks"] == 1, r
 
 
 def test_solver_tolerance_does_not_dominate(accuracy):
     rs = runs(accuracy, "release", "solver")
     exact = find(rs, solver="cholmod")["pos_err_mm"]
-    default = find(rs, solver="pcg", pcg_tolerance=1e-4, pcg_float_matrix=True)["pos_err_mm"]
+    d = accuracy["defaults"]
+    default = find(rs, solver="pcg", pcg_tolerance=d["pcg_tolerance"],
+                   pcg_float_matrix=d["pcg_float_matrix"])["pos_err_mm"]
     assert abs(default - exact) < 0.01 * exact, (default, exact)
+    # on every mesh, the default tolerance and one 10x tighter give the same error within 1%
+    res = runs(accuracy, "release", "resolution")
+    for n in {r["triangles"] for r in res}:
+        a, b = sorted((r for r in res if r["triangles"] == n), key=lambda r: -r["pcg_tolerance"])
+        assert abs(a["pos_err_mm"] - b["pos_err_mm"]) < 0.01 * b["pos_err_mm"], (a, b)
 
 
 def test_finer_mesh_is_closer_to_the_finest(accuracy):
-    rs = runs(accuracy, "release", "resolution")
+    rs = [r for r in runs(accuracy, "release", "resolution")
+          if r["pcg_tolerance"] == accuracy["defaults"]["pcg_tolerance"]]
     coarse = find(rs, triangles=242)["pos_err_mm"]
     default = find(rs, triangles=968)["pos_err_mm"]
     assert default < coarse
@@ -109,9 +117,7 @@ def test_stability_quick_map():
     assert len(j["cells"]) == 16
     for c in j["cells"]:
         assert "non-finite" not in c.get("failure", ""), c["label"]
-        # a blow-up is caught on its first step and the integrator stays at alpha 1 after it:
-        # a few abandoned steps at most (without the fallback: 83-193 in these cells)
-        assert c["restores"] <= 5, c["label"]
+        # a blow-up at alpha < 1 switches the integrator to alpha 1 once and for all
         assert c["alpha_fallbacks"] <= 1, c["label"]
         if c["alpha"] == 1.0:
             assert c["max_kinetic_j"] <= c["energy_bound_j"], c["label"]
