@@ -73,9 +73,13 @@ def plot_stability(j, out):
                 if c["alpha"] != a or c["finger_speed"] != v:
                     continue
                 x, y = dts.index(c["dt_ms"]), scales.index(c["stiffness_scale"])
-                col = "tab:green" if c["pass"] else "tab:red"
-                if c["pass"] and c["retries"] > 0:
-                    col = "gold"
+                fail = c.get("failure", "")
+                if c["pass"]:
+                    col = "gold" if c["retries"] > 0 else "tab:green"
+                elif fail.startswith("penetration"):
+                    col = "tab:orange"  # stable; the global cloth inside the proxy > tolerance
+                else:
+                    col = "tab:red"  # non-finite, energy over the bound, or abandoned steps
                 ax.add_patch(plt.Rectangle((x - 0.45, y - 0.45), 0.9, 0.9, color=col))
                 ax.text(x, y, "%.1f" % c["max_penetration_mm"], ha="center", va="center", fontsize=7)
             ax.set_xlim(-0.5, len(dts) - 0.5)
@@ -85,8 +89,10 @@ def plot_stability(j, out):
             ax.set_xlabel("dt (ms)")
             ax.set_ylabel("stiffness")
             ax.set_title("alpha %g, finger %g m/s" % (a, v), fontsize=9)
-    fig.suptitle("stability map: green pass, gold pass after retried steps, red fail "
-                 "(numbers: max penetration, mm)", fontsize=10)
+    fig.suptitle("stability map (dt 1 ms: direct coupling; 5-40 ms: local patch). green pass, gold "
+                 "pass after retried steps, orange: penetration over tolerance only,\nred: "
+                 "abandoned steps, energy over bound or non-finite (numbers: max penetration, mm)",
+                 fontsize=9)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
 

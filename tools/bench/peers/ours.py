@@ -107,7 +107,7 @@ def main():
                f" (small strain {common.K_WEFT:g} / {common.K_WARP:g} / {common.K_SHEAR:g} N/m),"
                " lumped mass, air damping 0.5 N s/m^3; implicit Euler (alpha 1)")
     results = []
-    for solver, notes in (("pcg", "one linearized implicit solve per step (eq. 9) by PCG (float matrix, tolerance 1e-4)"),
+    for solver, notes in (("pcg", "one linearized implicit solve per step (eq. 9) by PCG (float matrix, the scene's tolerance 1e-3)"),
                           ("cholmod", "one linearized implicit solve per step (eq. 9) by sparse Cholesky (CHOLMOD)")):
         if only and solver not in only:
             continue
