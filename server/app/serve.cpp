@@ -32,7 +32,9 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
   if (sc.haptics.local_patch) {
     os << "local refinement on (" << (sc.local_patch == "on" ? "asked for" : "the global step")
        << " " << step_ms << " ms median at start-up vs the " << haptic_period_ms
-       << " ms haptic period): a subdivided patch per fingertip runs at the haptic rate";
+       << " ms haptic period): a subdivided patch per fingertip runs at the haptic rate."
+       << " Limits (BENCHMARKS.md): a pinch is not held (each fingertip pushes its own patch),"
+       << " and the global cloth that renderers see trails the fingertip by up to about 5 mm";
   } else if (fits) {
     os << "direct coupling, no local patch: the global step takes " << step_ms
        << " ms (median at start-up), within the " << haptic_period_ms
