@@ -44,6 +44,13 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
        << haptic_period_ms << " ms; the cloth is extrapolated at constant velocity between steps";
   }
   s.push_back(os.str());
+  if (sc.haptics.local_patch && sc.integrator.alpha < 1.0) {
+    std::ostringstream a;
+    a << "alpha " << sc.integrator.alpha << " < 1 with local refinement: on stiff cloth this"
+      << " abandons steps (hapticloth-bench stability, BENCHMARKS.md); the integrator switches to"
+      << " alpha 1 at the first energy explosion, and alpha 1 is the recommended setting here";
+    s.push_back(a.str());
+  }
   s.push_back(sc.material.viscous() ? "strain-rate (viscous) terms on: the material has viscosity"
                                     : "strain-rate terms off: the material has no viscosity");
   s.push_back(m.pins_count() > 0 ? "pinned vertices: " + std::to_string(m.pins_count()) + " move kinematically"
