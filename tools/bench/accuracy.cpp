@@ -5,8 +5,6 @@
 #include <time.h>
 
 #include <algorithm>
-#include <cstdlib>
-#include <fstream>
 #include <cmath>
 #include <iostream>
 #include <limits>
@@ -15,9 +13,6 @@
 #include "bench_common.hpp"
 #include "cloth/integrator.hpp"
 #include "cloth/mesh.hpp"
-#include "hal/handle.hpp"
-#include "haptics/session.hpp"
-#include "mock/mock_device.hpp"
 #include "mock/trajectory.hpp"
 
 namespace hapticloth::bench {
@@ -68,19 +63,8 @@ Trace run_haptic(const app::Scene& sc, const cloth::ClothModel& m, const cloth::
                  const Vec3& device_origin, const devices::Trajectory& script, const RunConfig& c, double duration,
                  const std::vector<double>& samples) {
   const double rate = c.dt < 1e-3 ? 1.0 / c.dt : 1000.0;
-  haptics::SessionConfig hc = sc.haptics;
-  hc.try_realtime = false;
-  hc.haptic_rate = rate;
-  hc.local_patch = c.local_patch;
-  hc.mapping.origin = device_origin;
-  devices::DeviceOptions dopt = sc.device;
-  dopt.rate = rate;
-  devices::DeviceHandle dev(std::make_unique<devices::MockDevice>(dopt, script));
-  if (const std::string e = dev.configure(); !e.empty()) throw std::runtime_error("mock device: " + e);
-  cloth::IntegratorConfig ic = sc.integrator;
-  ic.dt = c.dt;
-  ic.alpha = c.alpha;
-  haptics::Session session(m, ic, make_solver(sc, c), start, dev, hc);
+  MockRig rig(sc, m, start, script, c, rate, device_origin);
+  haptics::Session& session = *rig.session;
 
   Trace tr;
   const long per_ms = std::max(1L, std::lround(rate / 1000.0));
@@ -102,12 +86,6 @@ Trace run_haptic(const app::Scene& sc, const cloth::ClothModel& m, const cloth::
   tr.events = session.sim().integrator().events();
   for (const auto& x : tr.x) tr.finite = tr.finite && finite_positions(x);
   for (const auto& f : tr.force) tr.finite = tr.finite && f.allFinite();
-  if (const char* d = std::getenv("HAPTICLOTH_BENCH_TRACE")) {  // debugging aid: force traces
-    static int run_no = 0;
-    std::ofstream o(std::string(d) + "/" + std::to_string(run_no++) + " " + describe(c) + ".csv");
-    for (std::size_t k = 0; k < tr.force.size(); ++k)
-      o << k / 2 << "," << k % 2 << "," << tr.force[k].x() << "," << tr.force[k].y() << "," << tr.force[k].z() << "\n";
-  }
   if (tr.x.size() != samples.size()) throw std::logic_error("accuracy: a sample time was not reached");
   return tr;
 }
@@ -300,16 +278,7 @@ json accuracy(const AccuracyOptions& opt) {
   // ---------------------------------------------------------------- press and pinch (haptics)
   // Both start from the hanging square at rest (the scene's preroll, CHOLMOD at dt 1 ms).
   const cloth::ClothModel hanging = app::build_model(sc);
-  cloth::ClothState rest = cloth::rest_state(hanging);
-  {
-    RunConfig pre = defaults;
-    pre.solver = "cholmod";
-    auto integ = make_integrator(sc, hanging, pre);
-    const long n = std::lround(sc.preroll / pre.dt);
-    for (long k = 0; k < n; ++k) integ->step(rest);
-    rest.time = 0.0;
-    for (auto& v : rest.v) v.setZero();
-  }
+  const cloth::ClothState rest = settle(sc, hanging, cloth::rest_state(hanging), defaults.dt, sc.preroll);
   // The press: a 0.3 m square of the same denim, pinned on its four edges and pre-stretched by
   // 3% (an embroidery hoop: a membrane without bending resists a press only through tension),
   // under gravity; finger 0 comes down on it at (3, 2) mm from the centre, presses 4 mm into
@@ -326,14 +295,9 @@ json accuracy(const AccuracyOptions& opt) {
     for (const char* e : {"top", "bottom", "left", "right"})
       for (int v : cloth::grid_edge(mesh, e)) pins.push_back(v);
     drum = cloth::build_model(mesh, sc.material, pins);
-    drum_start = cloth::rest_state(drum);
-    for (auto& x : drum_start.x) x.head<2>() *= 1.03;
-    RunConfig pre = defaults;
-    pre.solver = "cholmod";
-    auto integ = make_integrator(sc, drum, pre);
-    for (int k = 0; k < 2000; ++k) integ->step(drum_start);  // 2 s: settles the sag
-    drum_start.time = 0.0;
-    for (auto& v : drum_start.v) v.setZero();
+    cloth::ClothState stretched = cloth::rest_state(drum);
+    for (auto& x : stretched.x) x.head<2>() *= 1.03;
+    drum_start = settle(sc, drum, stretched, defaults.dt, 2.0);  // 2 s: settles the sag
   }
   devices::Trajectory press(2);
   {

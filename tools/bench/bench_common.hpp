@@ -4,7 +4,9 @@
 
 #include <time.h>
 
+#include <cmath>
 #include <cstdio>
+#include <stdexcept>
 #include <memory>
 #include <string>
 
@@ -12,6 +14,9 @@
 
 #include "app/scene_file.hpp"
 #include "cloth/integrator.hpp"
+#include "hal/handle.hpp"
+#include "haptics/session.hpp"
+#include "mock/mock_device.hpp"
 #include "cloth/mesh.hpp"
 #include "cloth/solver.hpp"
 
@@ -110,5 +115,51 @@ inline cloth::ClothModel grid_model(const app::Scene& sc, int n, double stiffnes
       for (auto& b : row) b *= stiffness_scale;
   return cloth::build_model(mesh, mat, cloth::grid_edge(mesh, "top"));
 }
+
+/// `s` brought to rest: `seconds` of CHOLMOD steps of `dt` (alpha 1), then zero velocity and
+/// time 0 (the start state of a benchmark run).
+inline cloth::ClothState settle(const app::Scene& sc, const cloth::ClothModel& m, cloth::ClothState s,
+                                double dt, double seconds) {
+  RunConfig pre;
+  pre.dt = dt;
+  pre.solver = "cholmod";
+  auto integ = make_integrator(sc, m, pre);
+  const long n = std::lround(seconds / dt);
+  for (long k = 0; k < n; ++k) integ->step(s);
+  s.time = 0.0;
+  for (auto& v : s.v) v.setZero();
+  return s;
+}
+
+/// A haptic session on the stepped clock with the mock device playing `script`: the scene's
+/// [haptics] and [device] settings with the run's dt, alpha, solver and coupling.
+struct MockRig {
+  devices::DeviceHandle dev;
+  std::unique_ptr<haptics::Session> session;
+  MockRig(const app::Scene& sc, const cloth::ClothModel& m, const cloth::ClothState& start,
+          const devices::Trajectory& script, const RunConfig& c, double haptic_rate,
+          const Eigen::Vector3d& device_origin)
+      : dev(make_device(sc, script, haptic_rate)) {
+    if (const std::string e = dev.configure(); !e.empty()) throw std::runtime_error("mock device: " + e);
+    haptics::SessionConfig hc = sc.haptics;
+    hc.try_realtime = false;
+    hc.haptic_rate = haptic_rate;
+    hc.local_patch = c.local_patch;
+    hc.mapping.origin = device_origin;
+    cloth::IntegratorConfig ic = sc.integrator;
+    ic.dt = c.dt;
+    ic.alpha = c.alpha;
+    ic.validate();
+    session = std::make_unique<haptics::Session>(m, ic, make_solver(sc, c), start, dev, hc);
+  }
+
+ private:
+  static std::unique_ptr<devices::Device> make_device(const app::Scene& sc, const devices::Trajectory& script,
+                                                      double rate) {
+    devices::DeviceOptions o = sc.device;
+    o.rate = rate;
+    return std::make_unique<devices::MockDevice>(o, script);
+  }
+};
 
 }  // namespace hapticloth::bench

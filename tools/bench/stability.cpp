@@ -6,10 +6,7 @@
 
 #include "accuracy.hpp"
 #include "bench_common.hpp"
-#include "hal/handle.hpp"
 #include "haptics/geometry.hpp"
-#include "haptics/session.hpp"
-#include "mock/mock_device.hpp"
 #include "mock/trajectory.hpp"
 
 namespace hapticloth::bench {
@@ -44,32 +41,15 @@ double distance_to_cloth(const Vec3& p, const std::vector<Vec3>& x, const cloth:
 
 // The hanging square at rest for a material scale (6 s from flat, CHOLMOD, dt 5 ms).
 cloth::ClothState settle(const app::Scene& sc, const cloth::ClothModel& m) {
-  RunConfig pre;
-  pre.dt = 5e-3;
-  pre.solver = "cholmod";
-  auto integ = make_integrator(sc, m, pre);
-  cloth::ClothState s = cloth::rest_state(m);
-  for (long k = 0; k < std::lround(sc.preroll / pre.dt); ++k) integ->step(s);
-  s.time = 0.0;
-  for (auto& v : s.v) v.setZero();
-  return s;
+  return bench::settle(sc, m, cloth::rest_state(m), 5e-3, sc.preroll);
 }
 
 Outcome run(const app::Scene& sc, const cloth::ClothModel& m, const cloth::ClothState& start,
             const devices::Trajectory& script, const RunConfig& c, double duration, double pen_tol) {
-  haptics::SessionConfig hc = sc.haptics;
-  hc.try_realtime = false;
-  hc.local_patch = c.local_patch;
-  devices::DeviceOptions dopt = sc.device;
-  devices::DeviceHandle dev(std::make_unique<devices::MockDevice>(dopt, script));
-  if (const std::string e = dev.configure(); !e.empty()) throw std::runtime_error("mock device: " + e);
-  cloth::IntegratorConfig ic = sc.integrator;
-  ic.dt = c.dt;
-  ic.alpha = c.alpha;
-  ic.validate();
-  haptics::Session session(m, ic, make_solver(sc, c), start, dev, hc);
-  const double r = hc.finger.radius;
-  const long every = std::max(1L, std::lround(c.dt * hc.haptic_rate));
+  MockRig rig(sc, m, start, script, c, sc.haptics.haptic_rate, sc.haptics.mapping.origin);
+  haptics::Session& session = *rig.session;
+  const double r = sc.haptics.finger.radius;
+  const long every = std::max(1L, std::lround(c.dt * sc.haptics.haptic_rate));
   Outcome o;
   long tick = 0;
   const double t0 = cpu_seconds();
