@@ -10,7 +10,7 @@
 use std::cell::RefCell;
 use std::ffi::{c_char, c_void, CStr};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, RwLock};
 
 use zenoh::matching::MatchingListener;
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -203,8 +203,31 @@ struct Ctx(*mut c_void);
 unsafe impl Send for Ctx {}
 unsafe impl Sync for Ctx {}
 
+/// Keeps C callbacks and undeclaring apart: a callback runs under the read lock and only while
+/// the gate is open; closing it takes the write lock, so it waits for callbacks in flight on
+/// zenoh's threads (zenoh's undeclare alone does not), and none runs after it. The C context
+/// may then be freed.
+#[derive(Clone)]
+struct Gate(Arc<RwLock<bool>>);
+
+impl Gate {
+    fn new() -> Self {
+        Gate(Arc::new(RwLock::new(true)))
+    }
+    fn run(&self, f: impl FnOnce()) {
+        let open = self.0.read().unwrap_or_else(|e| e.into_inner());
+        if *open {
+            f();
+        }
+    }
+    fn close(&self) {
+        *self.0.write().unwrap_or_else(|e| e.into_inner()) = false;
+    }
+}
+
 pub struct HzSubscriber {
     _subscriber: Subscriber<()>,
+    gate: Gate,
 }
 
 /// Declares a subscriber on `key` that calls `cb(…, ctx)` for every sample. NULL on error.
@@ -223,17 +246,21 @@ pub extern "C" fn hz_declare_subscriber(
     // SAFETY: a live session handle.
     let session = unsafe { &(*s).session };
     let ctx = Ctx(ctx);
+    let gate = Gate::new();
+    let g = gate.clone();
     let r = session
         .declare_subscriber(key.to_owned())
         .callback(move |sample| {
-            let payload = sample.payload().to_bytes();
-            let k = sample.key_expr().as_str();
-            let c = &ctx;
-            cb(payload.as_ptr(), payload.len(), k.as_ptr() as *const c_char, k.len(), c.0);
+            g.run(|| {
+                let payload = sample.payload().to_bytes();
+                let k = sample.key_expr().as_str();
+                let c = &ctx;
+                cb(payload.as_ptr(), payload.len(), k.as_ptr() as *const c_char, k.len(), c.0);
+            })
         })
         .wait();
     match r {
-        Ok(sub) => Box::into_raw(Box::new(HzSubscriber { _subscriber: sub })),
+        Ok(sub) => Box::into_raw(Box::new(HzSubscriber { _subscriber: sub, gate })),
         Err(e) => {
             set_error(format!("declare subscriber {key}: {e}"));
             std::ptr::null_mut()
@@ -247,6 +274,7 @@ pub extern "C" fn hz_undeclare_subscriber(sub: *mut HzSubscriber) {
     if !sub.is_null() {
         // SAFETY: from hz_declare_subscriber, not used again.
         let sub = unsafe { Box::from_raw(sub) };
+        sub.gate.close();
         let _ = sub._subscriber.undeclare().wait();
     }
 }
@@ -266,6 +294,7 @@ pub type HzQueryCallback =
 
 pub struct HzQueryable {
     _queryable: Queryable<()>,
+    gate: Gate,
 }
 
 /// Declares a queryable on `key`. NULL on error.
@@ -285,17 +314,21 @@ pub extern "C" fn hz_declare_queryable(
     let session = unsafe { &(*s).session };
     let ctx = Ctx(ctx);
     let reply_key = key.to_owned();
+    let gate = Gate::new();
+    let g = gate.clone();
     let r = session
         .declare_queryable(key.to_owned())
         .callback(move |query| {
-            let q = HzQuery { query: &query, reply_key: &reply_key };
-            let k = query.key_expr().as_str();
-            let c = &ctx;
-            cb(&q, k.as_ptr() as *const c_char, k.len(), c.0);
+            g.run(|| {
+                let q = HzQuery { query: &query, reply_key: &reply_key };
+                let k = query.key_expr().as_str();
+                let c = &ctx;
+                cb(&q, k.as_ptr() as *const c_char, k.len(), c.0);
+            })
         })
         .wait();
     match r {
-        Ok(q) => Box::into_raw(Box::new(HzQueryable { _queryable: q })),
+        Ok(q) => Box::into_raw(Box::new(HzQueryable { _queryable: q, gate })),
         Err(e) => {
             set_error(format!("declare queryable {key}: {e}"));
             std::ptr::null_mut()
@@ -328,6 +361,7 @@ pub extern "C" fn hz_undeclare_queryable(q: *mut HzQueryable) {
     if !q.is_null() {
         // SAFETY: from hz_declare_queryable, not used again.
         let q = unsafe { Box::from_raw(q) };
+        q.gate.close();
         let _ = q._queryable.undeclare().wait();
     }
 }
