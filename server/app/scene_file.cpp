@@ -156,7 +156,8 @@ void load_device(const TomlFile& f, const toml::table& t, const std::string& pat
 void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   f.only_keys(t, "haptics", {"rate", "finger_radius", "stiffness", "damping", "friction",
                              "kernel_radius", "margin", "preroll", "slew_rate", "watchdog_ms",
-                             "ramp_ms", "max_force", "realtime", "local_patch", "finger_mass"});
+                             "ramp_ms", "max_force", "realtime", "local_patch", "finger_mass",
+                             "contact_stiffness"});
   auto& h = s.haptics;
   auto positive = [&](const char* key, double& v, const char* unit) {
     v = f.number(t, "haptics", key, v);
@@ -174,6 +175,7 @@ void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   non_negative("kernel_radius", h.coupling.kernel_radius, "m; 0 = automatic");
   non_negative("margin", h.coupling.margin, "m");
   non_negative("finger_mass", h.coupling.finger_mass, "kg; 0 = no impact transfer");
+  positive("contact_stiffness", h.finger.contact_stiffness, "Pa/m, contact pressure per metre of depth");
   non_negative("preroll", s.preroll, "s");
   positive("slew_rate", h.gate.slew_rate, "N/s");
   double wd = h.gate.watchdog * 1e3, ramp = h.gate.ramp_time * 1e3;
@@ -186,6 +188,13 @@ void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   s.local_patch = f.string(t, "haptics", "local_patch", s.local_patch);
   if (s.local_patch != "auto" && s.local_patch != "on" && s.local_patch != "off")
     f.fail(t.get("local_patch"), "haptics.local_patch", "must be \"auto\", \"on\" or \"off\"");
+  // Direct coupling solves the fingertip spheres with the cloth: no kernel spreads the force
+  // and the contact itself exchanges the impact momentum.
+  for (const char* key : {"kernel_radius", "finger_mass"})
+    if (s.local_patch == "off" && t.contains(key))
+      f.fail(t.get(key), std::string("haptics.") + key,
+             "applies only to local_patch = \"on\"; with direct coupling the fingertip is a sphere "
+             "solved with the cloth (its contact is set by contact_stiffness)");
 }
 
 }  // namespace

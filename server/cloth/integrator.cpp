@@ -51,7 +51,7 @@ double Integrator::assemble_elements(const ClothState& s, double h) {
   double* const Aval = A_.val.data();
   double* const rhs = rhs_.data();
   const int* const free_index = model_.free_index.data();
-  const int* const row_stride = model_.row_stride.data();
+  const int* const row_stride = sys_.row_stride.data();
   const Vec3* const X = s.x.data();
   const Vec3* const Vel = s.v.data();
   double e_el = 0.0;
@@ -187,7 +187,7 @@ double Integrator::assemble_elements(const ClothState& s, double h) {
           Ws[3 * c + r] += c3 * va[r] * vb[c];
         }
     }
-    const auto& off = model_.block_offset[t];
+    const auto& off = sys_.block_offset[t];
     int fk[3];
     for (int k = 0; k < 3; ++k) {
       fk[k] = free_index[e.v[k]];
@@ -240,7 +240,11 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
   alpha_ = cfg_.alpha;
   if (!solver_) throw std::invalid_argument("integrator: a linear solver is required");
   viscous_ = model_.material.viscous();
-  A_ = model_.pattern;
+  if (cfg_.proxies < 0 || cfg_.proxies > 16)
+    throw std::invalid_argument("integrator.proxies: must be in [0, 16]");
+  sys_ = build_pattern(model_, cfg_.proxies);
+  A_ = sys_.csr;
+  proxies_.assign(cfg_.proxies, ProxyNode{});
   const int n = A_.n;
   rhs_.setZero(n);
   dv_.setZero(n);
@@ -293,8 +297,8 @@ bool Integrator::assemble(const ClothState& s, double h, JacobianMode mode) {
     const int i = model_.free_vertices[f];
     const double mi = model_.mass[i];
     const double ci = cair * model_.vertex_area[i];
-    double* dst = A_.val.data() + model_.diag_offset[f];
-    const int stride = model_.row_stride[f];
+    double* dst = A_.val.data() + sys_.diag_offset[f];
+    const int stride = sys_.row_stride[f];
     for (int r = 0; r < 3; ++r) dst[r * stride + r] += mi + ah * ci;
     rhs_.segment<3>(3 * f) += h * (mi * cfg_.gravity - ci * s.v[i] + f_ext_[i]);
     if (external_stiffness_on) {
@@ -310,7 +314,91 @@ bool Integrator::assemble(const ClothState& s, double h, JacobianMode mode) {
   }
   energy_old_ = ke + e_el + eg;
   energy_scale_ = ke + std::abs(e_el) + energy_floor_;
+  if (cfg_.proxies > 0) {
+    A_base_.assign(A_.val.begin(), A_.val.end());
+    rhs_base_ = rhs_;
+    assemble_proxies(s, h);
+  }
   return rhs_.allFinite() && std::isfinite(energy_old_);
+}
+
+// The proxies and point springs in eq. 9. A proxy is a node without mass or velocity of its own
+// (quasi-static), so its unknown dv_p gives the displacement alpha h dv_p like a vertex at rest.
+// Its coupling to the target (stiffness k, damping c) adds alpha^2 h^2 k + alpha h c to its
+// diagonal and h (k (target - x) + c target_velocity) to its right-hand side. A point spring
+// at x_q = sum b_k x_k with force f and stiffness K acts on the relative displacement of the
+// point and the proxy: blocks alpha^2 h^2 b_k b_l K between corners, -alpha^2 h^2 b_k K between a
+// corner and the proxy, alpha^2 h^2 K on the proxy; right-hand sides h b_k (f - alpha h K v_q)
+// on the corners and minus their sum on the proxy.
+void Integrator::assemble_proxies(const ClothState& s, double h) {
+  const double ah = alpha_ * h, aahh = ah * ah;
+  const int nf = sys_.free_nodes;
+  double* const val = A_.val.data();
+  auto add_block = [&](int offset, int stride, const Mat3& B) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) val[offset + r * stride + c] += B(r, c);
+  };
+  for (int j = 0; j < cfg_.proxies; ++j) {
+    const ProxyNode& p = proxies_[j];
+    const int node = nf + j;
+    add_block(sys_.diag_offset[node], sys_.row_stride[node],
+              (aahh * p.stiffness + ah * p.damping) * Mat3::Identity());
+    rhs_.segment<3>(3 * node) += h * (p.stiffness * (p.target - p.x) + p.damping * p.target_velocity);
+  }
+  for (const PointSpring& sp : springs_) {
+    const auto& e = model_.elements[sp.tri];
+    const int node = nf + sp.proxy;
+    Vec3 vq = Vec3::Zero();
+    for (int k = 0; k < 3; ++k) vq += sp.b[k] * s.v[e.v[k]];
+    const Vec3 g = h * (sp.f - ah * (sp.K * vq));
+    rhs_.segment<3>(3 * node) -= g;
+    const Mat3 Kh = aahh * sp.K;
+    add_block(sys_.diag_offset[node], sys_.row_stride[node], Kh);
+    const auto& off = sys_.block_offset[sp.tri];
+    for (int k = 0; k < 3; ++k) {
+      const int fk = model_.free_index[e.v[k]];
+      if (fk < 0) continue;
+      rhs_.segment<3>(3 * fk) += sp.b[k] * g;
+      // corner row: the proxy's columns come last in it; the proxy's row lists every free node
+      const int corner_proxy = A_.rowptr[3 * fk] + sys_.row_stride[fk] - 3 * (cfg_.proxies - sp.proxy);
+      add_block(corner_proxy, sys_.row_stride[fk], -sp.b[k] * Kh);
+      add_block(A_.rowptr[3 * node] + 3 * fk, sys_.row_stride[node], -sp.b[k] * Kh);
+      for (int l = 0; l < 3; ++l)
+        if (off[k * 3 + l] >= 0) add_block(off[k * 3 + l], sys_.row_stride[fk], sp.b[k] * sp.b[l] * Kh);
+    }
+  }
+}
+
+// Work done on the cloth by the point springs over the candidate step (their start-of-step
+// forces on the displacement of their points): the user's energy input through the fingertips.
+double Integrator::contact_work(const ClothState& s) const {
+  double w = 0.0;
+  for (const PointSpring& sp : springs_) {
+    const auto& e = model_.elements[sp.tri];
+    Vec3 dq = Vec3::Zero();
+    for (int k = 0; k < 3; ++k) dq += sp.b[k] * (xn_[e.v[k]] - s.x[e.v[k]]);
+    w += sp.f.dot(dq);
+  }
+  return w;
+}
+
+// Eq. 9 update of a solved (sub)step into the candidate state: dv from the solve,
+// dx = h (v + alpha dv); pinned vertices move with their velocity, proxies by alpha h dv_p.
+void Integrator::candidate_state(const ClothState& s, double h) {
+  const double a = alpha_;
+  for (int i = 0; i < model_.num_vertices(); ++i) {
+    const int f = model_.free_index[i];
+    if (f < 0) {
+      vn_[i] = s.v[i];
+      xn_[i] = s.x[i] + h * s.v[i];
+      continue;
+    }
+    const Vec3 dv = dv_.segment<3>(3 * f);
+    vn_[i] = s.v[i] + dv;
+    xn_[i] = s.x[i] + h * (s.v[i] + a * dv);
+  }
+  for (int j = 0; j < cfg_.proxies; ++j)
+    proxies_[j].displacement = a * h * dv_.segment<3>(3 * (sys_.free_nodes + j));
 }
 
 const SymCsr& Integrator::system_matrix(const ClothState& s, double h, JacobianMode mode) {
@@ -381,25 +469,36 @@ Integrator::Attempt Integrator::single_step(ClothState& s, double h) {
     dv_.setZero();
     return Attempt::Failed;
   }
+  candidate_state(s, h);
+  // Active set: a contact that would pull or a point that would pass into a fingertip changes
+  // the point springs; solve again with them (warm-started from this solution).
+  for (int rev = 0; contacts_ && rev < cfg_.max_contact_revisions; ++rev) {
+    if (!contacts_->revise(xn_, proxies_, springs_)) break;
+    ++events_.contact_revisions;
+    auto t3 = Clock::now();
+    std::copy(A_base_.begin(), A_base_.end(), A_.val.begin());
+    rhs_ = rhs_base_;
+    assemble_proxies(s, h);
+    const SolveStatus st2 = solver_->solve(A_, rhs_.data(), dv_.data());
+    timing_.iterations += solver_->iterations();
+    timing_.solve_ms += ms_since(t3);
+    if (st2 != SolveStatus::Ok || !dv_.allFinite()) {
+      ++(st2 == SolveStatus::Ok ? events_.non_finite : events_.solver_not_converged);
+      dv_.setZero();
+      dv_prev_.setZero();
+      return Attempt::Failed;
+    }
+    candidate_state(s, h);
+  }
 
-  // Eq. 9 update: dv from the solve, dx = h (v + alpha dv).
-  const double a = alpha_;
   double ke = 0.0, eg = 0.0, work = 0.0;
   for (int i = 0; i < model_.num_vertices(); ++i) {
-    const int f = model_.free_index[i];
-    if (f < 0) {
-      vn_[i] = s.v[i];
-      xn_[i] = s.x[i] + h * s.v[i];
-      continue;
-    }
-    const Vec3 dv = dv_.segment<3>(3 * f);
-    const Vec3 dx = h * (s.v[i] + a * dv);
-    vn_[i] = s.v[i] + dv;
-    xn_[i] = s.x[i] + dx;
+    if (model_.free_index[i] < 0) continue;
     ke += 0.5 * model_.mass[i] * vn_[i].squaredNorm();
     eg -= model_.mass[i] * cfg_.gravity.dot(xn_[i]);
-    work += f_ext_[i].dot(dx);
+    work += f_ext_[i].dot(xn_[i] - s.x[i]);
   }
+  work += contact_work(s);
   // Energy explosion: the step created far more energy than external forces supplied. The
   // elastic energy is >= 0 (Psi >= 0 for laws through the origin), so kinetic + gravitational
   // energy is a lower bound of the new total and no second pass over the elements is needed:
@@ -420,6 +519,7 @@ Integrator::Attempt Integrator::single_step(ClothState& s, double h) {
   have_prev_energy_ = true;
   s.x.swap(xn_);
   s.v.swap(vn_);
+  for (auto& p : proxies_) p.x += p.displacement;
   s.time += h;
   ++timing_.substeps;
   return Attempt::Ok;

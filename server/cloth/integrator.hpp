@@ -21,6 +21,8 @@ struct IntegratorConfig {
   int max_halvings = 4;           ///< retries a failed step with dt/2, dt/4, ... this deep
   double explosion_ratio = 1.0;   ///< energy gain per step, relative to the energy scale,
                                   ///< above which a step is an energy explosion
+  int proxies = 0;                ///< massless proxy nodes solved with the cloth (fingertips)
+  int max_contact_revisions = 2;  ///< re-solves of a step whose contact set changed
 
   /// Throws std::invalid_argument naming the offending field.
   void validate() const;
@@ -37,10 +39,48 @@ struct IntegratorEvents {
   std::uint64_t alpha_fallbacks = 0;      ///< explosions at alpha < 1 after which alpha is 1
   std::uint64_t retries = 0;              ///< failed (sub)steps retried at half the step
   std::uint64_t restores = 0;             ///< steps abandoned: last good state restored, at rest
+  std::uint64_t contact_revisions = 0;    ///< solves repeated because the contact set changed
   std::uint64_t total() const {
     return non_finite + solver_not_converged + solver_error + not_positive_definite +
            jacobian_fallbacks + energy_explosions + alpha_fallbacks + retries + restores;
   }
+};
+
+/// A massless proxy node solved with the cloth in eq. 9 (a fingertip in constraint-based haptic
+/// rendering): a spring-damper holds it to a target (the device's fingertip at the end of the
+/// step), point springs (contacts) push it. Being massless it is in force balance at the end of
+/// every step, so the force its coupling spring renders is exactly minus the sum of the forces
+/// it puts on the cloth (Newton's third law).
+struct ProxyNode {
+  Vec3 x = Vec3::Zero();                ///< position, m (moved by each step)
+  Vec3 target = Vec3::Zero();           ///< where the coupling pulls it at the end of the step, m
+  Vec3 target_velocity = Vec3::Zero();  ///< m/s, for the coupling's damping
+  double stiffness = 0.0;               ///< N/m of the coupling
+  double damping = 0.0;                 ///< N s/m of the coupling
+  Vec3 displacement = Vec3::Zero();     ///< out: its motion over the last step, m
+};
+
+/// A force between a material point of the cloth (weights b on the corners of triangle `tri`)
+/// and a proxy: f on the cloth at the start of the step (the proxy gets -f) and its stiffness
+/// K = -df/dx_point = df/dx_proxy (symmetric PSD), which enters eq. 9 like H.
+struct PointSpring {
+  int tri = 0;
+  double b[3] = {0, 0, 0};
+  int proxy = 0;
+  Vec3 f = Vec3::Zero();
+  Mat3 K = Mat3::Zero();
+};
+
+/// The contact set's owner: after each solve of a (sub)step it sees the candidate end state and
+/// may change the point springs (a contact that would pull, a point that would go through), in
+/// which case the step is solved again with them (an active-set iteration).
+class StepContacts {
+ public:
+  virtual ~StepContacts() = default;
+  /// `x_new`: candidate end positions of all vertices; proxies hold their candidate
+  /// displacement. Returns true if the springs changed.
+  virtual bool revise(const std::vector<Vec3>& x_new, const std::vector<ProxyNode>& proxies,
+                      std::vector<PointSpring>& springs) = 0;
 };
 
 struct StepTiming {
@@ -72,6 +112,12 @@ class Integrator {
   std::vector<Mat3>& external_stiffness() { return k_ext_; }
   bool external_stiffness_on = false;
 
+  /// Proxy nodes (config.proxies of them) and the point springs between them and the cloth,
+  /// both set by the caller before each step (capacity is the caller's: reserve it).
+  std::vector<ProxyNode>& proxies() { return proxies_; }
+  std::vector<PointSpring>& point_springs() { return springs_; }
+  void set_contacts(StepContacts* c) { contacts_ = c; }
+
   const IntegratorEvents& events() const { return events_; }
   const StepTiming& last_timing() const { return timing_; }
   const IntegratorConfig& config() const { return cfg_; }
@@ -88,6 +134,9 @@ class Integrator {
   Attempt advance(ClothState& s, double h, int depth);
   Attempt single_step(ClothState& s, double h);
   bool assemble(const ClothState& s, double h, JacobianMode mode);
+  void assemble_proxies(const ClothState& s, double h);
+  void candidate_state(const ClothState& s, double h);
+  double contact_work(const ClothState& s) const;
   template <bool kViscous, bool kSpd>
   double assemble_elements(const ClothState& s, double h);  // returns the elastic energy
   bool state_finite(const ClothState& s) const;
@@ -100,7 +149,13 @@ class Integrator {
   bool viscous_;
   double energy_floor_;
 
+  SystemPattern sys_;
   SymCsr A_;
+  std::vector<double> A_base_;   // matrix before the proxies' terms (kept for re-solves)
+  Eigen::VectorXd rhs_base_;
+  std::vector<ProxyNode> proxies_;
+  std::vector<PointSpring> springs_;
+  StepContacts* contacts_ = nullptr;
   Eigen::VectorXd rhs_, dv_, dv_prev_, guess_;  // dv_prev_: the solution before dv_
   std::vector<Vec3> f_ext_;
   std::vector<Mat3> k_ext_;

@@ -1,6 +1,10 @@
 #include "cloth/mesh.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <map>
+#include <set>
+#include <utility>
 
 #include <Eigen/Geometry>
 #include <stdexcept>
@@ -82,6 +86,148 @@ std::vector<int> grid_edge(const Mesh& m, const std::string& edge) {
     throw std::invalid_argument("unknown edge '" + edge + "' (top, bottom, left, right)");
   }
   return out;
+}
+
+namespace {
+
+void require(bool ok, const std::string& field, const std::string& what) {
+  if (!ok) throw std::invalid_argument("DiscSpec." + field + " " + what);
+}
+
+double signed_area_xy(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  return 0.5 * ((b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x()));
+}
+
+}  // namespace
+
+Mesh make_disc(const DiscSpec& s) {
+  const auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  require(finite_positive(s.radius), "radius", "must be positive and finite");
+  require(finite_positive(s.centre_edge), "centre_edge", "must be positive and finite");
+  require(finite_positive(s.rim_edge), "rim_edge", "must be positive and finite");
+  require(std::isfinite(s.growth) && s.growth >= 1.0, "growth", "must be finite and >= 1");
+  require(s.centre.allFinite(), "centre", "must be finite");
+  require(s.centre_edge <= s.rim_edge, "centre_edge", "must be <= rim_edge");
+  require(s.rim_edge < s.radius, "rim_edge", "must be < radius");
+
+  // Ring radii: r_0 = 0 (centre vertex), r_{k+1} = r_k + h_k, h_k = min(centre_edge g^k,
+  // rim_edge); stop at the first ring beyond the radius, then end on it or on the ring
+  // before, whichever needs the smaller uniform rescaling to put the last ring at `radius`.
+  constexpr std::size_t kMaxRings = 100000;
+  std::vector<double> r{0.0};
+  double h = s.centre_edge;
+  while (r.back() < s.radius) {
+    r.push_back(r.back() + h);
+    h = std::min(h * s.growth, s.rim_edge);
+    require(r.size() <= kMaxRings, "centre_edge", "gives more than 100000 rings (too small)");
+  }
+  if (r.size() > 2 && std::log(r[r.size() - 1] / s.radius) > std::log(s.radius / r[r.size() - 2]))
+    r.pop_back();
+  const double scale = s.radius / r.back();
+  for (double& x : r) x *= scale;
+  r.back() = s.radius;
+  const std::size_t K = r.size() - 1;  // number of rings
+
+  // Vertex counts: ring 1 is a hexagon, ring k holds round(2 pi r_k / h_k) vertices with h_k
+  // the mean of the radial spacings on either side (the inner one on the last ring).
+  std::vector<int> count(K + 1, 1), first(K + 1, 0);
+  double total = 1.0;
+  for (std::size_t k = 1; k <= K; ++k) {
+    const double hk = k < K ? 0.5 * (r[k + 1] - r[k - 1]) : r[k] - r[k - 1];
+    const double n = k == 1 ? 6.0 : std::max(6.0, std::round(2.0 * M_PI * r[k] / hk));
+    total += n;
+    require(total < 2.0e7, "centre_edge", "gives more than 2e7 vertices (too small)");
+    count[k] = static_cast<int>(n);
+  }
+
+  Mesh m;
+  m.positions.reserve(static_cast<std::size_t>(total));
+  m.positions.push_back(s.centre);
+  std::vector<double> offset(K + 1, 0.0);  // angular offset of each ring, in units of its spacing
+  for (std::size_t k = 1; k <= K; ++k) {
+    first[k] = static_cast<int>(m.positions.size());
+    offset[k] = (k % 2 == 0) ? 0.5 : 0.0;  // stagger neighbouring rings
+    for (int j = 0; j < count[k]; ++j) {
+      const double th = 2.0 * M_PI * (j + offset[k]) / count[k];
+      m.positions.push_back(s.centre + Eigen::Vector3d(r[k] * std::cos(th), r[k] * std::sin(th), 0.0));
+    }
+  }
+
+  const auto add = [&](int a, int b, int c) {
+    m.triangles.push_back({a, b, c});
+    std::array<std::array<double, 2>, 3> uv;
+    const int v[3] = {a, b, c};
+    for (int q = 0; q < 3; ++q)
+      uv[q] = {m.positions[v[q]].x() - s.centre.x(), m.positions[v[q]].y() - s.centre.y()};
+    m.weave_uv.push_back(uv);
+  };
+
+  // Centre fan.
+  for (int j = 0; j < count[1]; ++j) add(0, first[1] + j, first[1] + (j + 1) % count[1]);
+
+  // Strips between rings k (inner, A) and k + 1 (outer, B).
+  for (std::size_t k = 1; k < K; ++k) {
+    const int na = count[k], nb = count[k + 1];
+    const auto A = [&](int i) { return first[k] + ((i % na) + na) % na; };
+    // Start B at the vertex angularly nearest to A_0.
+    const double tha = 2.0 * M_PI * offset[k] / na;
+    int j0 = static_cast<int>(std::lround(tha / (2.0 * M_PI) * nb - offset[k + 1]));
+    const auto B = [&](int j) { return first[k + 1] + (((j + j0) % nb) + nb) % nb; };
+    int i = 0, j = 0;
+    while (i < na || j < nb) {
+      bool advance_a;
+      if (i == na) {
+        advance_a = false;
+      } else if (j == nb) {
+        advance_a = true;
+      } else {
+        const auto& P = m.positions;
+        advance_a = (P[A(i + 1)] - P[B(j)]).squaredNorm() <= (P[A(i)] - P[B(j + 1)]).squaredNorm();
+        // Never emit an inverted triangle when the other choice is valid.
+        const double area_a = signed_area_xy(P[A(i)], P[B(j)], P[A(i + 1)]);
+        const double area_b = signed_area_xy(P[A(i)], P[B(j)], P[B(j + 1)]);
+        if (advance_a && !(area_a > 0.0) && area_b > 0.0) advance_a = false;
+        if (!advance_a && !(area_b > 0.0) && area_a > 0.0) advance_a = true;
+      }
+      if (advance_a) {
+        add(A(i), B(j), A(i + 1));
+        ++i;
+      } else {
+        add(A(i), B(j), B(j + 1));
+        ++j;
+      }
+    }
+  }
+  return m;
+}
+
+std::vector<int> disc_rim(const Mesh& mesh) {
+  // Directed boundary edges: an edge (a, b) of a triangle whose reverse (b, a) is in no
+  // triangle and which is not repeated.
+  std::map<std::pair<int, int>, int> directed;
+  for (const auto& t : mesh.triangles)
+    for (int q = 0; q < 3; ++q) ++directed[{t[q], t[(q + 1) % 3]}];
+  std::map<int, int> next;  // boundary successor of each boundary vertex
+  for (const auto& [e, n] : directed)
+    if (n == 1 && directed.find({e.second, e.first}) == directed.end()) next[e.first] = e.second;
+  if (next.empty()) throw std::invalid_argument("disc_rim: the mesh has no boundary edges");
+  std::vector<int> best;
+  std::set<int> seen;
+  for (const auto& [start, unused] : next) {
+    (void)unused;
+    if (seen.count(start)) continue;
+    std::vector<int> loop;
+    int v = start;
+    while (!seen.count(v)) {
+      seen.insert(v);
+      loop.push_back(v);
+      const auto it = next.find(v);
+      if (it == next.end()) break;
+      v = it->second;
+    }
+    if (loop.size() > best.size()) best = std::move(loop);
+  }
+  return best;
 }
 
 }  // namespace hapticloth::cloth

@@ -44,4 +44,29 @@ std::array<std::array<double, 2>, 3> flatten_triangle(const Eigen::Vector3d p[3]
 /// Throws std::invalid_argument for another name or a mesh that is not a grid.
 std::vector<int> grid_edge(const Mesh& mesh, const std::string& edge);
 
+/// Graded disc (flat, plane z = centre.z): rings of vertices whose radial spacing grows
+/// geometrically from `centre_edge` by `growth` per ring until it reaches `rim_edge`, after
+/// which it is kept; the last ring lies exactly at `radius`.
+struct DiscSpec {
+  double radius = 0.1;         ///< m, rest radius of the disc
+  double centre_edge = 0.001;  ///< m, target edge length at the centre
+  double rim_edge = 0.005;     ///< m, largest edge length (reached by geometric growth, then kept)
+  double growth = 1.12;        ///< edge-length ratio between neighbouring rings (>= 1)
+  Eigen::Vector3d centre{0, 0, 0};
+};
+
+/// Graded disc mesh: a centre vertex with a hexagonal fan, then rings k = 1..K at radii r_k
+/// holding about 2 pi r_k / h_k vertices (h_k the local radial spacing), consecutive rings
+/// joined by advancing along both rings and taking the shorter diagonal. Triangles are
+/// counter-clockwise seen from +z. weave_uv per corner = rest (x - centre.x, y - centre.y)
+/// (weft along x); grid_nx = grid_ny = 0. Throws std::invalid_argument naming the bad field
+/// (every length positive and finite, centre_edge <= rim_edge < radius, growth >= 1).
+Mesh make_disc(const DiscSpec& spec);
+
+/// Vertices of the outer boundary loop of a mesh (for make_disc: the rim ring), in
+/// counter-clockwise order. Found from the edges used by a single triangle; when there are
+/// several boundary loops the longest is returned. Throws std::invalid_argument if the mesh
+/// has no boundary.
+std::vector<int> disc_rim(const Mesh& mesh);
+
 }  // namespace hapticloth::cloth

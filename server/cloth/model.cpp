@@ -62,10 +62,19 @@ ClothModel build_model(const Mesh& mesh, const Material& material, const std::ve
     m.free_vertices.push_back(i);
   }
 
-  // Block sparsity pattern over free vertices.
-  const int nf = m.num_free();
-  std::vector<std::vector<int>> nbr(nf);
-  for (int f = 0; f < nf; ++f) nbr[f].push_back(f);
+  SystemPattern sys = build_pattern(m, 0);
+  m.pattern = std::move(sys.csr);
+  m.block_offset = std::move(sys.block_offset);
+  m.row_stride = std::move(sys.row_stride);
+  m.diag_offset = std::move(sys.diag_offset);
+  return m;
+}
+
+SystemPattern build_pattern(const ClothModel& m, int proxies) {
+  // Block sparsity pattern over free vertices, then the proxies.
+  const int nf = m.num_free(), nn = nf + proxies;
+  std::vector<std::vector<int>> nbr(nn);
+  for (int f = 0; f < nn; ++f) nbr[f].push_back(f);
   for (const auto& e : m.elements) {
     for (int k = 0; k < 3; ++k) {
       const int fk = m.free_index[e.v[k]];
@@ -76,44 +85,55 @@ ClothModel build_model(const Mesh& mesh, const Material& material, const std::ve
       }
     }
   }
-  SymCsr& P = m.pattern;
-  P.n = 3 * nf;
+  for (int j = nf; j < nn; ++j)
+    for (int f = 0; f < nf; ++f) {
+      nbr[f].push_back(j);
+      nbr[j].push_back(f);
+    }
+  SystemPattern sys;
+  sys.free_nodes = nf;
+  sys.proxies = proxies;
+  SymCsr& P = sys.csr;
+  P.n = 3 * nn;
   P.block3 = true;
   P.rowptr.assign(P.n + 1, 0);
-  m.row_stride.assign(nf, 0);
-  for (int f = 0; f < nf; ++f) {
+  sys.row_stride.assign(nn, 0);
+  for (int f = 0; f < nn; ++f) {
     auto& b = nbr[f];
     std::sort(b.begin(), b.end());
     b.erase(std::unique(b.begin(), b.end()), b.end());
-    m.row_stride[f] = 3 * static_cast<int>(b.size());
+    sys.row_stride[f] = 3 * static_cast<int>(b.size());
   }
-  for (int f = 0; f < nf; ++f)
-    for (int a = 0; a < 3; ++a) P.rowptr[3 * f + a + 1] = P.rowptr[3 * f + a] + m.row_stride[f];
+  for (int f = 0; f < nn; ++f)
+    for (int a = 0; a < 3; ++a) P.rowptr[3 * f + a + 1] = P.rowptr[3 * f + a] + sys.row_stride[f];
   P.col.resize(P.rowptr[P.n]);
   P.val.assign(P.rowptr[P.n], 0.0);
-  for (int f = 0; f < nf; ++f)
+  for (int f = 0; f < nn; ++f)
     for (int a = 0; a < 3; ++a) {
       int o = P.rowptr[3 * f + a];
       for (int g : nbr[f])
         for (int c = 0; c < 3; ++c) P.col[o++] = 3 * g + c;
     }
-  auto block_start = [&](int fk, int fl) {
-    const auto& b = nbr[fk];
-    const int pos = static_cast<int>(std::lower_bound(b.begin(), b.end(), fl) - b.begin());
-    return P.rowptr[3 * fk] + 3 * pos;
-  };
-  m.diag_offset.resize(nf);
-  for (int f = 0; f < nf; ++f) m.diag_offset[f] = block_start(f, f);
-  m.block_offset.resize(m.elements.size());
+  sys.diag_offset.resize(nn);
+  for (int f = 0; f < nn; ++f) sys.diag_offset[f] = sys.block(f, f);
+  sys.block_offset.resize(m.elements.size());
   for (size_t t = 0; t < m.elements.size(); ++t) {
     const auto& e = m.elements[t];
     for (int k = 0; k < 3; ++k)
       for (int l = 0; l < 3; ++l) {
         const int fk = m.free_index[e.v[k]], fl = m.free_index[e.v[l]];
-        m.block_offset[t][k * 3 + l] = (fk >= 0 && fl >= 0) ? block_start(fk, fl) : -1;
+        sys.block_offset[t][k * 3 + l] = (fk >= 0 && fl >= 0) ? sys.block(fk, fl) : -1;
       }
   }
-  return m;
+  return sys;
+}
+
+int SystemPattern::block(int a, int b) const {
+  const int r = 3 * a;
+  const int* lo = csr.col.data() + csr.rowptr[r];
+  const int* hi = csr.col.data() + csr.rowptr[r + 1];
+  const int* it = std::lower_bound(lo, hi, 3 * b);
+  return (it != hi && *it == 3 * b) ? static_cast<int>(it - csr.col.data()) : -1;
 }
 
 ClothState rest_state(const ClothModel& model) {

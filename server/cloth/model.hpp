@@ -37,6 +37,21 @@ struct ClothModel {
   int pins_count() const { return num_vertices() - num_free(); }
 };
 
+/// The sparsity pattern of eq. 9 over the free vertices followed by `proxies` massless proxy
+/// nodes (fingertips solved with the cloth). A proxy couples to every free vertex, since the
+/// cloth it touches changes from step to step; ordered last, its dense rows add no fill-in to a
+/// Cholesky factor beyond themselves.
+struct SystemPattern {
+  SymCsr csr;
+  std::vector<std::array<int, 9>> block_offset;  ///< as ClothModel::block_offset
+  std::vector<int> row_stride;   ///< per node (free vertices, then proxies)
+  std::vector<int> diag_offset;  ///< per node
+  int free_nodes = 0, proxies = 0;
+  /// Offset of block (node a, node b)'s first row, or -1 outside the pattern. O(log degree).
+  int block(int a, int b) const;
+};
+SystemPattern build_pattern(const ClothModel& model, int proxies);
+
 /// Builds the model: eq. 2 for every triangle, lumped masses, pins and the sparsity pattern.
 /// Throws std::invalid_argument for degenerate triangles, bad pin indices or bad density.
 ClothModel build_model(const Mesh& mesh, const Material& material, const std::vector<int>& pins);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 
 #include <fcl/geometry/bvh/BVH_model.h>
 #include <fcl/geometry/shape/sphere.h>
@@ -20,8 +21,9 @@ struct BroadPhase::Impl {
 };
 
 BroadPhase::BroadPhase(const std::vector<Eigen::Vector3d>& x,
-                       const std::vector<std::array<int, 3>>& tris)
-    : impl_(std::make_unique<Impl>()) {
+                       const std::vector<std::array<int, 3>>& tris, double refit_slack)
+    : impl_(std::make_unique<Impl>()), x_refit_(x), slack_(refit_slack),
+      triangles_(static_cast<int>(tris.size())) {
   impl_->model = std::make_shared<fcl::BVHModel<BV>>();
   impl_->pts.assign(x.begin(), x.end());
   std::vector<fcl::Triangle> t;
@@ -43,8 +45,20 @@ void BroadPhase::refit(const std::vector<Eigen::Vector3d>& x) {
   impl_->cloth->computeAABB();
 }
 
+void BroadPhase::update(const std::vector<Eigen::Vector3d>& x) {
+  double disp2 = 0.0;
+  for (size_t i = 0; i < x.size(); ++i) disp2 = std::max(disp2, (x[i] - x_refit_[i]).squaredNorm());
+  disp_ = std::sqrt(disp2);
+  if (disp_ > slack_) {
+    refit(x);
+    std::copy(x.begin(), x.end(), x_refit_.begin());
+    disp_ = 0.0;
+    ++refits_;
+  }
+}
+
 int BroadPhase::query_sphere(const Eigen::Vector3d& centre, double radius, int* out, int max_out) {
-  fcl::CollisionObjectd sphere(std::make_shared<fcl::Sphered>(radius));
+  fcl::CollisionObjectd sphere(std::make_shared<fcl::Sphered>(radius + disp_));
   sphere.setTranslation(centre);
   sphere.computeAABB();
   fcl::CollisionRequestd req(static_cast<std::size_t>(std::max(1, max_out)), false);

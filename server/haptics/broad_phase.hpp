@@ -3,6 +3,8 @@
 // fingertip's sphere grown by a margin that covers its motion until the next query.
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -12,17 +14,28 @@ namespace hapticloth::haptics {
 
 class BroadPhase {
  public:
-  BroadPhase(const std::vector<Eigen::Vector3d>& x, const std::vector<std::array<int, 3>>& tris);
+  /// `refit_slack`: largest vertex displacement (m) before update() refits the hierarchy.
+  BroadPhase(const std::vector<Eigen::Vector3d>& x, const std::vector<std::array<int, 3>>& tris,
+             double refit_slack = 0.003);
   ~BroadPhase();
   /// Refit the hierarchy to new vertex positions (same count).
   void refit(const std::vector<Eigen::Vector3d>& x);
-  /// Triangles whose bounding volumes overlap the sphere; at most `max_out`, sorted, unique.
-  /// Returns the count written to `out`.
+  /// Refit lazily: the hierarchy stays conservative if queries grow by the largest vertex
+  /// displacement since the last refit; refit once that exceeds the slack.
+  void update(const std::vector<Eigen::Vector3d>& x);
+  /// Triangles whose bounding volumes overlap the sphere (grown by the displacement since the
+  /// last refit); at most `max_out`, sorted, unique. Returns the count written to `out`.
   int query_sphere(const Eigen::Vector3d& centre, double radius, int* out, int max_out);
+  int triangles() const { return triangles_; }
+  std::uint64_t refits() const { return refits_; }
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
+  std::vector<Eigen::Vector3d> x_refit_;  // positions at the last refit
+  double slack_, disp_ = 0.0;
+  int triangles_ = 0;
+  std::uint64_t refits_ = 0;
 };
 
 }  // namespace hapticloth::haptics

@@ -14,16 +14,32 @@ namespace hapticloth::haptics {
 
 using Vec3 = Eigen::Vector3d;
 inline constexpr int kMaxFingers = devices::kMaxFingers;
-inline constexpr int kMaxCandidates = 256;  ///< triangles per finger from the broad phase
+
+/// A fingertip proxy after a global step (direct coupling: solved with the cloth).
+struct ProxyResult {
+  bool valid = false;            ///< the step had a device sample for this finger
+  Vec3 proxy = Vec3::Zero();     ///< proxy sphere centre, m
+  Vec3 target = Vec3::Zero();    ///< the device fingertip the coupling pulled towards, m
+  Vec3 force = Vec3::Zero();     ///< force on the user's finger, N: minus the cloth's contact forces
+  Vec3 normal = Vec3::Zero();    ///< direction of the summed normal contact forces (towards the finger)
+  Vec3 contact = Vec3::Zero();   ///< normal-force-weighted centre of the contacts, m
+  int triangle = -1;             ///< triangle of the strongest contact
+  double bary[3] = {0, 0, 0};
+  int points = 0;                ///< cloth samples in contact
+  bool in_contact = false;
+  bool slipping = false;         ///< every contact slides (gross slip)
+  double normal_force = 0.0;     ///< sum of the contacts' normal force magnitudes, N
+  double friction_force = 0.0;   ///< sum of the contacts' tangential force magnitudes, N
+  double penetration = 0.0;      ///< deepest cloth point inside the sphere, m
+};
 
 /// Global cloth state at one simulation step, for the haptic loop.
 struct ClothSnapshot {
   double time = -1.0;         ///< loop clock of the step (s); < 0: none yet
   std::uint64_t step = 0;
   std::vector<Vec3> x, v, n;  ///< vertex positions (m), velocities (m/s), unit normals
-  std::array<std::array<int, kMaxCandidates>, kMaxFingers> cand{};
-  std::array<int, kMaxFingers> ncand{};  ///< candidate triangles per finger
-  std::array<bool, kMaxFingers> overflow{};  ///< more candidates than kMaxCandidates
+  std::array<bool, kMaxFingers> near{};  ///< the fingertip is within reach of the cloth
+  std::array<ProxyResult, kMaxFingers> proxy{};  ///< direct coupling: the step's proxies
 
   void resize(int vertices) {
     x.assign(vertices, Vec3::Zero());
@@ -37,9 +53,8 @@ struct ClothSnapshot {
     std::copy(o.x.begin(), o.x.end(), x.begin());
     std::copy(o.v.begin(), o.v.end(), v.begin());
     std::copy(o.n.begin(), o.n.end(), n.begin());
-    cand = o.cand;
-    ncand = o.ncand;
-    overflow = o.overflow;
+    near = o.near;
+    proxy = o.proxy;
   }
 };
 

@@ -137,7 +137,7 @@ void LocalPatch::rebuild(const ClothSnapshot& s, const Vec3& c) noexcept {
     w2_springs = std::max(w2_springs, 2.0 * kv_[v] / m_[v]);
     m_min = std::min(m_min, m_[v]);
   }
-  const double tick = 1e-3;
+  const double tick = p_.haptic_period;
   const double w2_contact = m_min < 1e300 ? p_.contact_stiffness / m_min : 0.0;
   const double needed = std::ceil(tick * std::sqrt(w2_springs + w2_contact));
   const int lo = std::max(1, p_.substeps), hi = std::max(lo, p_.max_substeps);
@@ -179,12 +179,17 @@ void LocalPatch::normals() noexcept {
   }
 }
 
-Vec3 LocalPatch::step(const ClothSnapshot& s, double now, bool contact, const Vec3& c,
-                      const Vec3& vc, double r, double k, double mu, int side, int tri,
-                      const double b[3], Vec3& anchor, bool& slipping) noexcept {
+Vec3 LocalPatch::step(const ClothSnapshot& s, double now, const PatchTouch& touch, Vec3& anchor,
+                      bool& slipping) noexcept {
+  const bool contact = touch.contact;
+  const Vec3& c = touch.c;
+  const Vec3& vc = touch.vc;
+  const double r = touch.r, k = touch.k, mu = touch.mu;
+  const int side = touch.side, tri = touch.tri;
+  const double* b = touch.b;
   slipping = false;
   if (nt_ == 0) return Vec3::Zero();
-  const double tick = 1e-3;
+  const double tick = p_.haptic_period;
   border_positions(s, now);
   const int n = substeps_;
   const double h = tick / n;

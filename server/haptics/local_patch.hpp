@@ -30,6 +30,18 @@ struct PatchParams {
                                ///< softened to what this many substeps integrate stably
   double contact_stiffness = 2000.0;  ///< N/m, the fingertip spring (for the stability bound)
   int max_triangles = 192;     ///< global triangles per patch (4x as many refined ones)
+  double haptic_period = 1e-3;  ///< s, one step() (the scene's haptic rate)
+};
+
+/// The fingertip on the patch for one tick: centre c (velocity vc), radius r, on side `side` of
+/// the surface, touching refined triangle `tri` at barycentric `b` while `contact`, with the
+/// contact spring k and Coulomb coefficient mu.
+struct PatchTouch {
+  bool contact = false;
+  Vec3 c = Vec3::Zero(), vc = Vec3::Zero();
+  double r = 0.0, k = 0.0, mu = 0.0;
+  int side = 0, tri = -1;
+  double b[3] = {1, 0, 0};
 };
 
 /// What the finger touches on the patch.
@@ -58,14 +70,12 @@ class LocalPatch {
   /// Builds the patch around `c` from snapshot `s` (interior state from the snapshot).
   void rebuild(const ClothSnapshot& s, const Vec3& c) noexcept;
   void clear() noexcept { nt_ = nv_ = 0; }
-  /// Advances the patch to loop time `now`. While `contact`, the fingertip (centre c, radius r,
-  /// on side `side` of the surface) touches the refined triangle `tri` at barycentric `b`: on
-  /// every substep the normal spring (stiffness k) and the Coulomb friction spring to `anchor`
-  /// (carried by the touched point, sliding when beyond mu x normal force) act on the patch, so
-  /// the coupling is stable for the light refined vertices. Returns the force on the user's
-  /// finger averaged over the substeps; `slipping` tells whether the friction slid.
-  Vec3 step(const ClothSnapshot& s, double now, bool contact, const Vec3& c, const Vec3& vc,
-            double r, double k, double mu, int side, int tri, const double b[3], Vec3& anchor,
+  /// Advances the patch by one haptic period to loop time `now`. While touching, on every
+  /// substep the normal spring and the Coulomb friction spring to `anchor` (carried by the
+  /// touched point, sliding when beyond mu x normal force) act on the patch, so the coupling is
+  /// stable for the light refined vertices. Returns the force on the user's finger averaged over
+  /// the substeps; `slipping` tells whether the friction slid.
+  Vec3 step(const ClothSnapshot& s, double now, const PatchTouch& t, Vec3& anchor,
             bool& slipping) noexcept;
   /// Closest point of the patch surface to p, with shaded normal and velocity.
   SurfacePoint closest(const Vec3& p) const noexcept;

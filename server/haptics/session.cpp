@@ -57,15 +57,15 @@ Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& 
   snap_ = std::make_unique<TripleBuffer<ClothSnapshot>>(sized_snapshot(model.num_vertices()));
   rep_ = std::make_unique<TripleBuffer<HapticReport>>(HapticReport{});
   sim_ = std::make_unique<SimWorker>(model, cfg, std::move(solver), start, dev_.info().fingers,
-                                     sc_.finger, sc_.coupling, *snap_, *rep_);
+                                     sc_.finger, sc_.coupling, sc_.local_patch, *snap_, *rep_);
   loop_ = std::make_unique<HapticLoop>(tris_, model.num_vertices(), dev_, *gate_, sc_.finger,
                                        sc_.mapping, *snap_, *rep_);
-  loop_->set_extrapolation(sc_.extrapolate);
   if (sc_.local_patch) {
     PatchParams p = sc_.patch;
     p.areal_density = model.material.areal_density;
     p.stiffness = 0.5 * (model.material.weft.B[0][1] + model.material.warp.B[0][1]);
     p.contact_stiffness = sc_.finger.stiffness;
+    p.haptic_period = 1.0 / sc_.haptic_rate;
     // The patch reaches the force-spreading kernel's radius (2 mean edges), at least 2 fingertip
     // radii: enough triangles to hold the dent, few enough to step 32 times a millisecond.
     if (!(sc_.patch.radius > 0.0)) p.radius = std::max(2.0 * sc_.finger.radius, sim_->kernel_radius());
@@ -173,7 +173,11 @@ SessionReport Session::report() const {
   r.patch_rebuilds = loop_->patch_rebuilds();
   r.patch_softened = loop_->patch_softened();
   r.device_errors = loop_->device_errors();
-  r.candidate_overflows = loop_->candidate_overflows();
+  if (const FingertipContact* c = sim_->fingertips()) {
+    r.max_penetration = c->max_penetration();
+    r.contact_samples = c->active_samples();
+  }
+  r.contact_revisions = sim_->integrator().events().contact_revisions;
   return r;
 }
 
@@ -193,6 +197,9 @@ std::string SessionReport::to_text() const {
   os << "contact ticks    " << contact_ticks << " (slipping " << slip_ticks << "), max force "
      << max_force << " N\n";
   os << "narrow phase     skipped on " << narrow_phase_skipped << " ticks (no finger near the cloth)\n";
+  os << "fingertip contact " << contact_samples << " sample-steps, " << contact_revisions
+     << " re-solves, deepest cloth point " << std::setprecision(3) << max_penetration * 1e3
+     << " mm inside a fingertip\n" << std::setprecision(1);
   if (patch_rebuilds > 0)
     os << "local patch      " << patch_rebuilds << " builds, " << patch_softened
        << " with springs softened to stay stable (material stiffer than max_substeps integrate)\n";
@@ -219,6 +226,9 @@ std::string SessionReport::to_json() const {
   j["patch_rebuilds"] = patch_rebuilds;
   j["patch_softened"] = patch_softened;
   j["device_errors"] = device_errors;
+  j["contact_samples"] = contact_samples;
+  j["contact_revisions"] = contact_revisions;
+  j["max_penetration_m"] = max_penetration;
   j["realtime_scheduling"] = realtime_scheduling;
   j["memory_locked"] = memory_locked;
   return j.dump();

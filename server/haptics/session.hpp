@@ -31,7 +31,6 @@ struct SessionConfig {
   /// turns it on when the global step does not fit in the haptic period.
   bool local_patch = false;
   PatchParams patch;            ///< stiffness and density are taken from the material
-  bool extrapolate = true;      ///< without patches: constant-velocity extrapolation (else hold)
   double spin_lead = 150e-6;    ///< s: the haptic thread sleeps to this before each deadline, then spins
 };
 
@@ -39,7 +38,11 @@ struct SessionReport {
   LoopStats haptic;
   Histogram sim_step_us;
   std::uint64_t sim_steps = 0, contact_ticks = 0, slip_ticks = 0, narrow_phase_skipped = 0;
-  std::uint64_t device_errors = 0, candidate_overflows = 0;
+  std::uint64_t device_errors = 0;
+  /// Direct coupling: cloth samples in contact summed over steps, steps re-solved because the
+  /// contact set changed, and the deepest any cloth point got inside a fingertip sphere (m).
+  std::uint64_t contact_samples = 0, contact_revisions = 0;
+  double max_penetration = 0.0;
   std::uint64_t patch_rebuilds = 0, patch_softened = 0;  ///< local patch builds (4.2)
   double max_force = 0.0;          ///< N, largest force sent to a finger
   double sim_time = 0.0;           ///< simulated seconds

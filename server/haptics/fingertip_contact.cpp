@@ -1,0 +1,319 @@
+#include "haptics/fingertip_contact.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "haptics/geometry.hpp"
+
+namespace hapticloth::haptics {
+
+namespace {
+using cloth::Mat3;
+
+// A sample that would pull harder than this (N per m^2 of its area per kappa, i.e. metres of
+// negative depth) is dropped; a point deeper than kAddDepth inside a sphere is added.
+constexpr double kPullDepth = 1e-6;  // m
+constexpr double kAddDepth = 2e-5;   // m
+}  // namespace
+
+FingertipContact::FingertipContact(const cloth::ClothModel& model,
+                                   const std::vector<std::array<int, 3>>& tris, int fingers,
+                                   const ContactParams& p, cloth::Integrator& integ)
+    : model_(model),
+      tris_(tris),
+      fingers_(fingers),
+      p_(p),
+      integ_(integ),
+      bp_(model.rest_positions, tris) {
+  if (fingers_ < 0 || fingers_ > kMaxFingers)
+    throw std::invalid_argument("fingertip contact: finger count out of range");
+  if (static_cast<int>(integ_.proxies().size()) < fingers_)
+    throw std::invalid_argument("fingertip contact: the integrator needs a proxy per finger");
+  if (!(p_.radius > 0.0) || !(p_.pressure_stiffness > 0.0) || !(p_.coupling_stiffness > 0.0))
+    throw std::invalid_argument("fingertip contact: radius, stiffnesses must be > 0");
+  spacing_ = p_.sample_spacing > 0.0 ? p_.sample_spacing : p_.radius / 8.0;
+  // Subdivide each triangle so that its sub-triangles' edges are at most the spacing: every
+  // point of the cloth is then within spacing / sqrt(3) of a sample.
+  const int nt = static_cast<int>(tris_.size());
+  sub_.resize(nt);
+  first_.resize(nt + 1, 0);
+  for (int t = 0; t < nt; ++t) {
+    double e = 0.0;
+    for (int k = 0; k < 3; ++k)
+      e = std::max(e, (model_.rest_positions[tris_[t][k]] - model_.rest_positions[tris_[t][(k + 1) % 3]]).norm());
+    sub_[t] = std::max(1, static_cast<int>(std::ceil(e / spacing_ - 1e-9)));
+    first_[t + 1] = first_[t] + sub_[t] * sub_[t];
+  }
+  for (int f = 0; f < fingers_; ++f) {
+    fing_[f].cand.resize(nt);
+    fing_[f].now.reserve(1024);
+    fing_[f].prev.reserve(1024);
+  }
+  integ_.point_springs().reserve(2048);
+  integ_.set_contacts(this);
+}
+
+// Centroid of sub-triangle k of an m x m subdivision, in barycentric coordinates: the m^2
+// sub-triangles are m(m+1)/2 upright ones (i + j <= m - 1) and m(m-1)/2 inverted ones.
+void FingertipContact::sample_point(int t, int k, double b[3]) const {
+  const int m = sub_[t];
+  const int up = m * (m + 1) / 2;
+  const bool inverted = k >= up;
+  int idx = inverted ? k - up : k;
+  const int rows = inverted ? m - 1 : m;
+  int i = 0;
+  for (int row = 0; row < rows; ++row) {  // row i holds rows - i sub-triangles
+    if (idx < rows - row) {
+      i = row;
+      break;
+    }
+    idx -= rows - row;
+  }
+  const int j = idx;
+  const double o = inverted ? 2.0 / 3.0 : 1.0 / 3.0;
+  b[1] = (i + o) / m;
+  b[2] = (j + o) / m;
+  b[0] = 1.0 - b[1] - b[2];
+}
+
+Vec3 FingertipContact::point(const std::vector<Vec3>& x, int tri, const double b[3]) const {
+  const auto& t = tris_[tri];
+  return b[0] * x[t[0]] + b[1] * x[t[1]] + b[2] * x[t[2]];
+}
+
+void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec3& proxy_at) {
+  Finger& F = fing_[f];
+  F.prev.swap(F.now);
+  F.now.clear();
+  const Vec3& p = integ_.proxies()[f].x;
+  const double reach = p_.radius + p_.margin + (proxy_at - p).norm();
+  F.ncand = bp_.query_sphere(p, reach, F.cand.data(), static_cast<int>(F.cand.size()));
+  size_t j = 0;  // walks the last step's contacts (both lists ascend by sample id)
+  for (int c = 0; c < F.ncand; ++c) {
+    const int t = F.cand[c];
+    const int ns = sub_[t] * sub_[t];
+    const double w = model_.elements[t].area / ns;
+    for (int k = 0; k < ns; ++k) {
+      Sample q;
+      sample_point(t, k, q.b);
+      const Vec3 x = point(s.x, t, q.b);
+      const Vec3 v = point(s.v, t, q.b);
+      const double d = (x - p).norm();
+      const double depth = p_.radius - d;
+      const double ahead = p_.radius - (x + h_ * v - proxy_at).norm();
+      if ((depth <= 0.0 && ahead <= 0.0) || d < 1e-12) continue;
+      q.id = first_[t] + k;
+      q.tri = t;
+      q.w = w;
+      q.n = (x - p) / d;
+      q.depth0 = depth;
+      q.x0 = x;
+      q.anchor = x - p;
+      while (j < F.prev.size() && F.prev[j].id < q.id) ++j;
+      if (j < F.prev.size() && F.prev[j].id == q.id) {  // a contact that persists: its friction state
+        q.anchor = F.prev[j].anchor;
+        q.slipping = F.prev[j].slipping;
+        q.fn = F.prev[j].fn;
+      }
+      F.now.push_back(q);
+    }
+  }
+}
+
+// The contact as a point spring (the cloth's side; the proxy gets minus it): the penalty
+// pressure kappa x depth over the sample's area along the sphere normal, and Coulomb friction:
+// a tangential spring to the anchor while it holds (|f_t| <= mu f_n), else mu f_n against the
+// slide. Linearized at the start of the step: K = kappa w n n^T (+ kappa w (I - n n^T) sticking).
+void FingertipContact::make_spring(int f, const Sample& q, cloth::PointSpring& sp) const {
+  const Vec3& p = p0_[f];
+  const double k = p_.pressure_stiffness * q.w;
+  const double fn = k * q.depth0;
+  sp.tri = q.tri;
+  for (int i = 0; i < 3; ++i) sp.b[i] = q.b[i];
+  sp.proxy = f;
+  sp.f = fn * q.n;
+  sp.K = k * q.n * q.n.transpose();
+  const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
+  const Vec3 d = Pt * (q.x0 - p - q.anchor);
+  const Vec3 ft = -k * d;
+  const double lim = p_.friction * std::max(fn, 0.0);
+  const double ftn = ft.norm();
+  if (ftn <= lim) {
+    sp.f += ft;
+    sp.K += k * Pt;
+  } else if (ftn > 0.0) {
+    sp.f += ft * (lim / ftn);
+  }
+}
+
+void FingertipContact::rebuild_springs() {
+  auto& springs = integ_.point_springs();
+  springs.clear();
+  for (int f = 0; f < fingers_; ++f)
+    for (const Sample& q : fing_[f].now) {
+      springs.emplace_back();
+      make_spring(f, q, springs.back());
+    }
+}
+
+void FingertipContact::begin_step(const cloth::ClothState& s,
+                                  const std::array<FingerTarget, kMaxFingers>& in, double h) {
+  h_ = h;
+  s0_ = &s;
+  bp_.update(s.x);
+  for (int f = 0; f < fingers_; ++f) {
+    cloth::ProxyNode& P = integ_.proxies()[f];
+    P.stiffness = p_.coupling_stiffness;
+    valid_[f] = in[f].valid;
+    if (!in[f].valid) {  // no device sample: the proxy stays where it is, touching nothing
+      P.target = P.x;
+      P.target_velocity.setZero();
+      P.damping = 0.0;
+      fing_[f].prev.clear();
+      fing_[f].now.clear();
+      fing_[f].ncand = 0;
+      continue;
+    }
+    if (!seen_[f]) {  // the first sample: the proxy starts at the fingertip
+      P.x = in[f].position;
+      seen_[f] = true;
+    }
+    p0_[f] = P.x;
+    P.target = in[f].position;
+    P.target_velocity = in[f].velocity;
+    P.damping = p_.coupling_damping;
+    find_samples(f, s, P.x + last_disp_[f]);
+  }
+  rebuild_springs();
+}
+
+bool FingertipContact::revise(const std::vector<Vec3>& x_new,
+                              const std::vector<cloth::ProxyNode>& proxies,
+                              std::vector<cloth::PointSpring>&) {
+  bool changed = false;
+  for (int f = 0; f < fingers_; ++f) {
+    Finger& F = fing_[f];
+    if (F.ncand == 0 && F.now.empty()) continue;
+    const Vec3& p0 = proxies[f].x;
+    const Vec3 dp = proxies[f].displacement;
+    const Vec3 p1 = p0 + dp;
+    // Contacts that would pull at the end of the step are released.
+    const size_t before = F.now.size();
+    F.now.erase(std::remove_if(F.now.begin(), F.now.end(),
+                               [&](const Sample& q) {
+                                 const Vec3 rel = point(x_new, q.tri, q.b) - q.x0 - dp;
+                                 return q.depth0 - q.n.dot(rel) < -kPullDepth;
+                               }),
+                F.now.end());
+    changed = changed || F.now.size() != before;
+    // Points that would end inside the sphere become contacts.
+    size_t j = 0;
+    const size_t nold = F.now.size();
+    for (int c = 0; c < F.ncand; ++c) {
+      const int t = F.cand[c];
+      const int ns = sub_[t] * sub_[t];
+      for (int k = 0; k < ns; ++k) {
+        const int id = first_[t] + k;
+        while (j < nold && F.now[j].id < id) ++j;
+        if (j < nold && F.now[j].id == id) continue;
+        Sample q;
+        sample_point(t, k, q.b);
+        const Vec3 x1 = point(x_new, t, q.b);
+        if (p_.radius - (x1 - p1).norm() <= kAddDepth) continue;
+        const Vec3 x = point(s0_->x, t, q.b);
+        const double d = (x - p0).norm();
+        if (d < 1e-12) continue;
+        q.id = id;
+        q.tri = t;
+        q.w = model_.elements[t].area / ns;
+        q.n = (x - p0) / d;
+        q.depth0 = p_.radius - d;
+        q.x0 = x;
+        q.anchor = x - p0;
+        F.now.push_back(q);
+        changed = true;
+      }
+    }
+    if (F.now.size() > nold)
+      std::inplace_merge(F.now.begin(), F.now.begin() + nold, F.now.end(),
+                         [](const Sample& a, const Sample& b) { return a.id < b.id; });
+  }
+  if (changed) rebuild_springs();
+  return changed;
+}
+
+double FingertipContact::exact_penetration(int f, const std::vector<Vec3>& x, const Vec3& c) const {
+  const Finger& F = fing_[f];
+  double best = 0.0;
+  for (int i = 0; i < F.ncand; ++i) {
+    const auto& t = tris_[F.cand[i]];
+    const ClosestPoint cp = closest_point_triangle(c, x[t[0]], x[t[1]], x[t[2]]);
+    best = std::max(best, p_.radius - std::sqrt(cp.dist2));
+  }
+  return best;
+}
+
+void FingertipContact::end_step(const cloth::ClothState& s) {
+  for (int f = 0; f < fingers_; ++f) {
+    ProxyResult& r = out_[f];
+    const cloth::ProxyNode& P = integ_.proxies()[f];
+    r = ProxyResult{};
+    r.proxy = P.x;
+    r.target = P.target;
+    if (!valid_[f]) {  // no device sample this step
+      last_disp_[f].setZero();
+      continue;
+    }
+    r.valid = true;
+    last_disp_[f] = P.displacement;
+    Finger& F = fing_[f];
+    Vec3 on_cloth = Vec3::Zero(), nsum = Vec3::Zero(), csum = Vec3::Zero();
+    double fmax = -1.0, fpos = 0.0;
+    bool all_slip = true;
+    cloth::PointSpring sp;
+    for (Sample& q : F.now) {
+      make_spring(f, q, sp);
+      const Vec3 x1 = point(s.x, q.tri, q.b);
+      // What the cloth got in the step: the spring linearized at the start, at the end state.
+      const Vec3 got = sp.f - sp.K * (x1 - q.x0 - P.displacement);
+      on_cloth += got;
+      const double fn = got.dot(q.n);
+      const Vec3 ft = got - fn * q.n;
+      r.normal_force += std::abs(fn);
+      r.friction_force += ft.norm();
+      nsum += fn * q.n;
+      csum += std::max(fn, 0.0) * x1;
+      fpos += std::max(fn, 0.0);
+      if (fn > fmax) {
+        fmax = fn;
+        r.triangle = q.tri;
+        for (int i = 0; i < 3; ++i) r.bary[i] = q.b[i];
+      }
+      // Coulomb return mapping at the end state: a stretched stick spring beyond mu f_n slides
+      // its anchor back onto the friction cone.
+      const double k = p_.pressure_stiffness * q.w;
+      const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
+      const Vec3 rel = x1 - P.x;
+      const Vec3 d = Pt * (rel - q.anchor);
+      const double lim = p_.friction * std::max(fn, 0.0);
+      const double dn = d.norm();
+      q.slipping = k * dn > lim;
+      if (q.slipping && dn > 0.0) q.anchor += d * (1.0 - lim / (k * dn));
+      q.fn = fn;
+      all_slip = all_slip && (q.slipping || fn <= 0.0);
+    }
+    r.points = static_cast<int>(F.now.size());
+    r.in_contact = r.points > 0;
+    r.slipping = r.in_contact && all_slip;
+    r.force = -on_cloth;
+    const double nn = nsum.norm();
+    r.normal = nn > 0.0 ? Vec3(-nsum / nn) : Vec3::Zero();
+    r.contact = fpos > 0.0 ? Vec3(csum / fpos) : P.x;
+    r.penetration = exact_penetration(f, s.x, P.x);
+    max_pen_ = std::max(max_pen_, r.penetration);
+    samples_in_contact_ += r.points;
+  }
+}
+
+}  // namespace hapticloth::haptics

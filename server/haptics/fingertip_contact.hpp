@@ -1,0 +1,115 @@
+// The fingertip as a rigid sphere touching the cloth wherever they overlap, solved with the cloth
+// in the implicit step (constraint-based haptic rendering of a deformable body, with penalty
+// contacts; see docs/haptics.md "Contact").
+//
+// Each fingertip is a massless proxy node of eq. 9 (cloth::ProxyNode), held to the device's
+// fingertip by the virtual coupling (spring and damper). The cloth's surface is sampled at
+// sub-triangle centroids no more than `sample_spacing` apart (a midpoint quadrature of each
+// triangle); every sample inside the sphere gets a one-sided penalty pressure kappa x depth
+// over its area along the sphere's normal, plus Coulomb friction (a tangential spring to an
+// anchor on the sphere while it sticks, mu x its normal force while it slips). Each contact is a
+// cloth::PointSpring: its stiffness is in the system matrix, so the light vertices under a
+// finger stay stable at dt 1 ms. After the solve, a contact that would pull is dropped and a
+// sample that would end inside the sphere is added, and the step is solved again (active set).
+//
+// The force rendered to the user is minus the sum of the contact forces the cloth got in the
+// step, which is the coupling spring's force because the proxy is massless (Newton's third law,
+// exactly, tick by tick). The impact of section 4.3.2 needs no separate momentum transfer: the
+// contact exchanges momentum through these equal and opposite forces.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "cloth/integrator.hpp"
+#include "haptics/broad_phase.hpp"
+#include "haptics/handoff.hpp"
+
+namespace hapticloth::haptics {
+
+struct ContactParams {
+  double radius = 0.008;              ///< m, fingertip sphere
+  double coupling_stiffness = 800.0;  ///< N/m, device to proxy
+  double coupling_damping = 1.0;      ///< N s/m, device to proxy
+  double friction = 0.5;              ///< Coulomb coefficient per contact
+  double pressure_stiffness = 3e9;    ///< Pa/m: contact pressure per metre of depth (kappa)
+  double sample_spacing = 0.0;        ///< m between surface samples; 0 = radius / 8
+  double margin = 0.01;               ///< m beyond the sphere searched for samples
+};
+
+/// The device's fingertip for one step, in the scene frame.
+struct FingerTarget {
+  bool valid = false;      ///< false: no device sample yet (the proxy stays put, no force)
+  Vec3 position = Vec3::Zero();  ///< at the end of the step, m
+  Vec3 velocity = Vec3::Zero();  ///< m/s
+};
+
+class FingertipContact final : public cloth::StepContacts {
+ public:
+  /// `integ` must have config().proxies >= fingers; its proxies start at `park` (m).
+  FingertipContact(const cloth::ClothModel& model, const std::vector<std::array<int, 3>>& tris,
+                   int fingers, const ContactParams& p, cloth::Integrator& integ);
+
+  /// Before a step of length h: the proxies' coupling targets, and the contacts found on the
+  /// state `s` handed to the integrator as point springs.
+  void begin_step(const cloth::ClothState& s, const std::array<FingerTarget, kMaxFingers>& in,
+                  double h);
+  bool revise(const std::vector<Vec3>& x_new, const std::vector<cloth::ProxyNode>& proxies,
+              std::vector<cloth::PointSpring>& springs) override;
+  /// After the step (the new state `s`): the forces the cloth got, friction state, penetration.
+  void end_step(const cloth::ClothState& s);
+
+  const ProxyResult& result(int f) const { return out_[f]; }
+  BroadPhase& broad_phase() { return bp_; }
+  /// Largest depth of any cloth point (vertex, edge or face) inside a fingertip sphere, m.
+  double max_penetration() const { return max_pen_; }
+  std::uint64_t active_samples() const { return samples_in_contact_; }
+  int samples_per_triangle(int t) const { return sub_[t] * sub_[t]; }
+  double sample_spacing() const { return spacing_; }
+
+ private:
+  struct Sample {  // one contact: a sample point against one fingertip
+    int id = 0;    // global sample index (triangle offset + sub-triangle)
+    int tri = 0;
+    double b[3] = {0, 0, 0};
+    double w = 0.0;                // area, m^2
+    Vec3 n = Vec3::Zero();         // unit normal from the sphere centre, at the start
+    double depth0 = 0.0;           // depth at the start of the step (negative outside)
+    Vec3 x0 = Vec3::Zero();        // point at the start
+    Vec3 anchor = Vec3::Zero();    // friction anchor, relative to the proxy centre
+    bool slipping = false;
+    double fn = 0.0;               // normal force at the end of the last step, N
+  };
+  struct Finger {
+    std::vector<Sample> now, prev;  // this step's contacts (sorted by id), last step's
+    std::vector<int> cand;          // candidate triangles (sized to the mesh: never overflows)
+    int ncand = 0;
+  };
+  void find_samples(int f, const cloth::ClothState& s, const Vec3& proxy_at);
+  void make_spring(int f, const Sample& q, cloth::PointSpring& sp) const;
+  void sample_point(int t, int k, double b[3]) const;
+  Vec3 point(const std::vector<Vec3>& x, int tri, const double b[3]) const;
+  double exact_penetration(int f, const std::vector<Vec3>& x, const Vec3& c) const;
+  void rebuild_springs();
+
+  const cloth::ClothModel& model_;
+  const std::vector<std::array<int, 3>>& tris_;
+  int fingers_;
+  ContactParams p_;
+  cloth::Integrator& integ_;
+  BroadPhase bp_;
+  double spacing_;
+  std::vector<int> sub_, first_;  // per triangle: subdivisions, first sample id
+  std::array<Finger, kMaxFingers> fing_;
+  std::array<ProxyResult, kMaxFingers> out_{};
+  std::array<Vec3, kMaxFingers> last_disp_{};
+  std::array<Vec3, kMaxFingers> p0_{};  // proxies at the start of the step
+  std::array<bool, kMaxFingers> seen_{}, valid_{};  // a device sample ever / this step
+  const cloth::ClothState* s0_ = nullptr;          // the state the step started from
+  double h_ = 1e-3;
+  double max_pen_ = 0.0;
+  std::uint64_t samples_in_contact_ = 0;
+};
+
+}  // namespace hapticloth::haptics

@@ -1,0 +1,91 @@
+#include "haptics/kernel_coupling.hpp"
+
+#include <algorithm>
+
+namespace hapticloth::haptics {
+
+KernelCoupling::KernelCoupling(const cloth::ClothModel& model,
+                               const std::vector<std::array<int, 3>>& tris, int fingers,
+                               double radius, double finger_mass)
+    : model_(model), tris_(tris), fingers_(fingers), R_(radius), finger_mass_(finger_mass) {
+  w_.assign(model_.num_vertices(), 0.0);
+}
+
+double KernelCoupling::apply_impact(const FingerReport& c, double me, cloth::ClothState& s) {
+  const double R2 = R_ * R_;
+  const Vec3& n = c.normal;
+  double ms = 0.0, ps = 0.0;
+  for (int i = 0; i < model_.num_vertices(); ++i) {
+    w_[i] = 0.0;
+    if (model_.pinned[i]) continue;
+    const double d2 = (s.x[i] - c.contact).squaredNorm();
+    if (d2 >= R2) continue;
+    const double u = 1.0 - d2 / R2;
+    w_[i] = u * u;  // phi_i, 1 at the contact point
+    ms += model_.mass[i] * w_[i];
+    ps += model_.mass[i] * w_[i] * s.v[i].dot(n);
+  }
+  if (ms <= 0.0 || me <= 0.0) return 0.0;
+  const double vs = ps / ms, ve = c.velocity.dot(n);
+  const double ves = (me * ve + ms * vs) / (me + ms);
+  for (int i = 0; i < model_.num_vertices(); ++i)
+    if (w_[i] > 0.0) s.v[i] += w_[i] * (ves - vs) * n;
+  return ms * (ves - vs);
+}
+
+void KernelCoupling::apply(const HapticReport& r, cloth::ClothState& s, cloth::Integrator& integ) {
+  for (int fi = 0; fi < fingers_; ++fi) {
+    const FingerReport& c = r.finger[fi];
+    if (r.time < 0.0 || !c.in_contact || c.impacts == impacts_seen_[fi]) continue;
+    impacts_seen_[fi] = c.impacts;
+    apply_impact(c, finger_mass_, s);
+  }
+  auto& f = integ.external_forces();
+  auto& K = integ.external_stiffness();
+  bool any = false;
+  applied_.setZero();
+  for (int fi = 0; fi < fingers_; ++fi) any = any || (r.time >= 0.0 && r.finger[fi].in_contact);
+  if (!any && !integ.external_stiffness_on) return;
+  std::fill(f.begin(), f.end(), Vec3::Zero());
+  std::fill(K.begin(), K.end(), cloth::Mat3::Zero());
+  integ.external_stiffness_on = any;
+  if (!any) return;
+  const double R2 = R_ * R_;
+  for (int fi = 0; fi < fingers_; ++fi) {
+    const FingerReport& c = r.finger[fi];
+    if (!c.in_contact) continue;
+    // Kernel weights around the contact point (4.3): w ~ A_i (1 - d^2/R^2)^2, normalized.
+    double sum = 0.0;
+    for (int i = 0; i < model_.num_vertices(); ++i) {
+      const double d2 = (s.x[i] - c.contact).squaredNorm();
+      w_[i] = 0.0;
+      if (d2 >= R2 || model_.pinned[i]) continue;
+      const double u = 1.0 - d2 / R2;
+      w_[i] = model_.vertex_area[i] * u * u;
+      sum += w_[i];
+    }
+    const Vec3 F = -c.force;  // the cloth gets the reaction of what the user feels
+    applied_ += F;
+    // Contact stiffness seen by the cloth: the normal spring, and while the friction sticks the
+    // tangential spring too (the anchor holds the cloth in every direction). Entering the
+    // implicit solve, it keeps the light vertices under the finger stable.
+    const cloth::Mat3 nn = c.slipping ? cloth::Mat3(c.stiffness * c.normal * c.normal.transpose())
+                                      : cloth::Mat3(c.stiffness * cloth::Mat3::Identity());
+    if (sum <= 0.0) {  // kernel found no free vertex: the contact triangle's own corners
+      const auto& t = tris_[c.triangle];
+      for (int k = 0; k < 3; ++k) {
+        f[t[k]] += c.bary[k] * F;
+        K[t[k]] += c.bary[k] * nn;
+      }
+      continue;
+    }
+    for (int i = 0; i < model_.num_vertices(); ++i) {
+      if (w_[i] == 0.0) continue;
+      const double wi = w_[i] / sum;
+      f[i] += wi * F;
+      K[i] += wi * nn;  // row-sum lumped contact stiffness: the spring acts implicitly
+    }
+  }
+}
+
+}  // namespace hapticloth::haptics

@@ -1,0 +1,248 @@
+// The touch checked against physics: a fingertip pressing a pre-tensioned drum (against the
+// exact rigid-sphere-on-membrane solution, membrane_reference.hpp) and a free cloth pinched and
+// held (against its weight). Both run the whole server path: mock device, stepped session,
+// haptic loop, simulation with the fingertip proxies. Shared by the tests and by
+// `hapticloth-bench fidelity` (BENCHMARKS.md, "Force fidelity").
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cloth/mesh.hpp"
+#include "cloth/model.hpp"
+#include "hal/handle.hpp"
+#include "haptics/session.hpp"
+#include "mock/mock_device.hpp"
+#include "support/fixtures.hpp"
+#include "support/membrane_reference.hpp"
+
+namespace hapticloth::test {
+
+using haptics::Vec3;
+
+inline devices::DeviceOptions touch_device_options() {
+  devices::DeviceOptions o;
+  o.workspace.min = Vec3(-0.3, -0.3, -0.3);
+  o.workspace.max = Vec3(0.3, 0.3, 0.3);
+  o.max_force = 20.0;
+  o.max_stiffness = 5000.0;
+  return o;
+}
+
+inline std::unique_ptr<cloth::LinearSolver> touch_solver(const std::string& name) {
+  cloth::PcgOptions pcg;
+  pcg.tolerance = 1e-3;  // the scenes' tolerance (BENCHMARKS.md)
+  pcg.max_iterations = 300;
+  pcg.single_precision_matrix = true;
+  return cloth::make_solver(name, pcg);
+}
+
+/// A stepped session around a mock device playing `tr`.
+struct TouchRig {
+  cloth::ClothModel model;
+  devices::DeviceHandle dev;
+  std::unique_ptr<haptics::Session> session;
+  TouchRig(cloth::ClothModel m, devices::Trajectory tr, const haptics::SessionConfig& sc,
+           const cloth::IntegratorConfig& ic, const cloth::ClothState& start,
+           const std::string& solver)
+      : model(std::move(m)),
+        dev(std::make_unique<devices::MockDevice>(touch_device_options(), std::move(tr))) {
+    dev.configure();
+    session = std::make_unique<haptics::Session>(model, ic, touch_solver(solver), start, dev, sc);
+  }
+};
+
+inline haptics::SessionConfig touch_session(double friction) {
+  haptics::SessionConfig sc;
+  sc.finger.radius = 0.008;
+  sc.finger.stiffness = 800.0;
+  sc.finger.damping = 1.0;
+  sc.finger.friction = friction;
+  sc.gate.slew_rate = 1e4;
+  sc.gate.ramp_time = 1e-3;
+  return sc;
+}
+
+// ---- The drum ------------------------------------------------------------------------------
+
+struct DrumSpec {
+  double centre_edge = 0.25e-3;  ///< m, rest edge length at the centre of the graded disc
+  MembraneDrum drum{};           ///< Et 1000 N/m, pre-stretch 1.1, rim radius 0.1 m, sphere 8 mm
+  double shear = 500.0;          ///< Gt, N/m (isotropic with Poisson 0: Et / 2)
+  double density = 0.1;          ///< kg/m^2
+  double speed = 1e-3;           ///< m/s, the device's descent (quasi-static)
+  std::string solver = "pcg";
+};
+
+struct DrumPoint {
+  double depth = 0.0;      ///< m, the proxy sphere's pole below the rim plane
+  double force = 0.0;      ///< N, rendered (normal to the drum)
+  double reference = 0.0;  ///< N, exact rigid sphere on the membrane
+  double error() const { return force / reference - 1.0; }
+};
+
+struct DrumResult {
+  int triangles = 0;
+  std::vector<DrumPoint> points;  ///< at 1, 2, 3 mm
+  double onset_depth = 0.0;       ///< m: proxy depth when contact began (0 = geometric touch)
+  double max_penetration = 0.0;   ///< m, deepest cloth point inside the sphere
+  haptics::SessionReport report;
+};
+
+/// The drum of the membrane reference as a graded disc, frictionless fingertip pressed slowly
+/// into its centre, no gravity. The force is read where the proxy's depth crosses 1, 2 and 3 mm.
+inline DrumResult press_drum(const DrumSpec& spec) {
+  const MembraneDrum& d = spec.drum;
+  cloth::DiscSpec ds;
+  ds.radius = d.rim_radius / d.prestretch;
+  ds.centre_edge = spec.centre_edge;
+  ds.rim_edge = std::max(5e-3, spec.centre_edge);
+  const cloth::Mesh mesh = cloth::make_disc(ds);
+  cloth::Material mat;
+  mat.name = "linear-isotropic";
+  mat.areal_density = spec.density;
+  mat.weft = cloth::StrainStressCurve::linear(d.Et);
+  mat.warp = cloth::StrainStressCurve::linear(d.Et);
+  mat.shear = cloth::StrainStressCurve::linear(spec.shear, true);
+  for (auto* c : {&mat.weft, &mat.warp, &mat.shear}) c->max_strain = 1.0;
+  cloth::ClothModel model = cloth::build_model(mesh, mat, cloth::disc_rim(mesh));
+  cloth::ClothState start = cloth::rest_state(model);
+  for (auto& x : start.x) x *= d.prestretch;  // pre-stretched, rim pinned there
+  cloth::IntegratorConfig ic;
+  ic.dt = 1e-3;
+  ic.gravity = Vec3::Zero();
+  ic.air_damping = 1.0;
+  const double r = d.sphere_radius;
+  const double top = r + 0.001, bottom = r - 0.0045;  // the device goes 4.5 mm below touch
+  const double t_end = (top - bottom) / spec.speed;
+  devices::Trajectory tr(2);
+  tr.add(0, 0.0, Vec3(0, 0, top));
+  tr.add(0, t_end, Vec3(0, 0, bottom));
+  tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));  // parked away
+  haptics::SessionConfig sc = touch_session(0.0);
+  TouchRig rig(std::move(model), std::move(tr), sc, ic, start, spec.solver);
+  DrumResult res;
+  res.triangles = rig.model.num_triangles();
+  std::vector<std::pair<double, double>> curve;  // (depth, force)
+  bool touched = false;
+  rig.session->run_stepped(t_end, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
+    const auto& f = h.last_report().finger[0];
+    const double depth = -(f.proxy.z() - r);
+    if (f.in_contact && !touched) {
+      touched = true;
+      res.onset_depth = depth;
+    }
+    if (touched) curve.emplace_back(depth, f.force.z());
+  });
+  res.report = rig.session->report();
+  res.max_penetration = res.report.max_penetration;
+  for (double target : {1e-3, 2e-3, 3e-3}) {
+    DrumPoint p;
+    p.depth = target;
+    for (size_t i = 1; i < curve.size(); ++i)
+      if (curve[i - 1].first < target && curve[i].first >= target) {
+        const double u = (target - curve[i - 1].first) / (curve[i].first - curve[i - 1].first);
+        p.force = curve[i - 1].second + u * (curve[i].second - curve[i - 1].second);
+        break;
+      }
+    p.reference = sphere_indentation(d, target).force;
+    res.points.push_back(p);
+  }
+  return res;
+}
+
+// ---- The handkerchief ----------------------------------------------------------------------
+
+struct PinchSpec {
+  int quads = 30;             ///< per side of the 0.2 m square
+  double size = 0.2;          ///< m
+  double squeeze = 0.002;     ///< m, each fingertip's device position inside the cloth
+  double friction = 0.6;
+  double hold = 6.0;          ///< s
+  std::string solver = "cholmod";
+};
+
+struct PinchResult {
+  double weight = 0.0;         ///< N, m g
+  double carried = 0.0;        ///< N, mean upward force the fingers put on the cloth, last second
+  double centre_offset = 0.0;  ///< m, cloth centre from the pinch point at the end
+  double max_penetration = 0.0;
+  /// N: largest difference, over the steps, between the force the cloth got from the fingers
+  /// (from its momentum balance: sum m dv / h - m g + air drag) and minus the rendered forces.
+  double third_law = 0.0;
+  haptics::SessionReport report;
+  double error() const { return carried / weight - 1.0; }
+};
+
+/// A free square of denim (no pins, gravity) pinched at its centre from above and below and held
+/// still. Carried = minus the vertical sum of the rendered forces.
+inline PinchResult pinch_handkerchief(const PinchSpec& spec) {
+  cloth::GridSpec g;
+  g.width = g.height = spec.size;
+  g.nx = g.ny = spec.quads;
+  g.origin = {-spec.size / 2, -spec.size / 2, 0.0};
+  const cloth::Mesh mesh = cloth::make_grid(g);
+  cloth::ClothModel model = cloth::build_model(mesh, denim(), {});
+  const cloth::ClothState start = cloth::rest_state(model);
+  cloth::IntegratorConfig ic;
+  ic.dt = 1e-3;
+  ic.gravity = Vec3(0, 0, -9.81);
+  ic.air_damping = 0.5;
+  const double r = 0.008, s = spec.squeeze;
+  const Vec3 at(0.0011, 0.0007, 0.0);  // off the centre vertex: inside a triangle
+  devices::Trajectory tr(2);
+  tr.add(0, 0.0, at + Vec3(0, 0, r));
+  tr.add(0, 0.05, at + Vec3(0, 0, r - s));
+  tr.add(0, spec.hold, at + Vec3(0, 0, r - s));
+  tr.add(1, 0.0, at - Vec3(0, 0, r));
+  tr.add(1, 0.05, at - Vec3(0, 0, r - s));
+  tr.add(1, spec.hold, at - Vec3(0, 0, r - s));
+  haptics::SessionConfig sc = touch_session(spec.friction);
+  TouchRig rig(std::move(model), std::move(tr), sc, ic, start, spec.solver);
+  int centre = 0;
+  for (int i = 0; i < rig.model.num_vertices(); ++i)
+    if (rig.model.rest_positions[i].head<2>().norm() < rig.model.rest_positions[centre].head<2>().norm())
+      centre = i;
+  PinchResult res;
+  res.weight = rig.model.total_mass * 9.81;
+  double sum = 0.0;
+  long n = 0;
+  const cloth::ClothModel& m = rig.model;
+  auto momentum = [&](const cloth::ClothState& st) {
+    Vec3 p = Vec3::Zero();
+    for (int i = 0; i < m.num_vertices(); ++i) p += m.mass[i] * st.v[i];
+    return p;
+  };
+  Vec3 p_prev = momentum(start);
+  rig.session->run_stepped(spec.hold, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker& sim) {
+    // Newton's third law, step by step: what the cloth's momentum says it got from the fingers
+    // against what the fingers render (before the device's safety gate).
+    const cloth::ClothState& st = sim.state();
+    const Vec3 p_now = momentum(st);
+    Vec3 drag = Vec3::Zero();
+    for (int i = 0; i < m.num_vertices(); ++i) drag += ic.air_damping * m.vertex_area[i] * st.v[i];
+    const Vec3 from_fingers = (p_now - p_prev) / ic.dt - m.total_mass * ic.gravity + drag;
+    p_prev = p_now;
+    Vec3 rendered = Vec3::Zero();
+    for (int f = 0; f < 2; ++f) rendered += sim.last_snapshot().proxy[f].force;
+    if ((from_fingers + rendered).norm() > res.third_law && std::getenv("TRACE"))
+      std::printf("t %.3f mismatch %.3e rendered %.3e %.3e %.3e events %llu\n", h.last_report().time,
+                  (from_fingers + rendered).norm(), rendered.x(), rendered.y(), rendered.z(),
+                  (unsigned long long)sim.integrator().events().total());
+    res.third_law = std::max(res.third_law, (from_fingers + rendered).norm());
+    const auto& rep = h.last_report();
+    if (rep.time < spec.hold - 1.0) return;
+    sum += -(rep.finger[0].force.z() + rep.finger[1].force.z());
+    ++n;
+  });
+  res.carried = n ? sum / n : 0.0;
+  res.centre_offset = (rig.session->sim().state().x[centre] - at).norm();
+  res.report = rig.session->report();
+  res.max_penetration = res.report.max_penetration;
+  return res;
+}
+
+}  // namespace hapticloth::test
