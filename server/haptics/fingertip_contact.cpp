@@ -14,7 +14,7 @@ using cloth::Mat3;
 // A sample that would pull harder than this (N per m^2 of its area per kappa, i.e. metres of
 // negative depth) is dropped; a point deeper than kAddDepth inside a sphere is added.
 constexpr double kPullDepth = 1e-6;  // m
-constexpr double kAddDepth = 2e-5;   // m
+constexpr double kAddDepth = 5e-6;   // m
 }  // namespace
 
 FingertipContact::FingertipContact(const cloth::ClothModel& model,
@@ -116,6 +116,7 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
         q.slipping = F.prev[j].slipping;
         q.fn = F.prev[j].fn;
       }
+      decide_friction(f, q);
       F.now.push_back(q);
     }
   }
@@ -123,28 +124,65 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
 
 // The contact as a point spring (the cloth's side; the proxy gets minus it): the penalty
 // pressure kappa x depth over the sample's area along the sphere normal, and Coulomb friction:
-// a tangential spring to the anchor while it holds (|f_t| <= mu f_n), else mu f_n against the
-// slide. Linearized at the start of the step: K = kappa w n n^T (+ kappa w (I - n n^T) sticking).
+// a tangential spring to the anchor while it sticks, a force of mu x its normal force against
+// the slide while it slides. Linearized at the start of the step: K = kappa w n n^T, plus
+// kappa w (I - n n^T) while sticking.
 void FingertipContact::make_spring(int f, const Sample& q, cloth::PointSpring& sp) const {
-  const Vec3& p = p0_[f];
   const double k = p_.pressure_stiffness * q.w;
-  const double fn = k * q.depth0;
   sp.tri = q.tri;
   for (int i = 0; i < 3; ++i) sp.b[i] = q.b[i];
   sp.proxy = f;
-  sp.f = fn * q.n;
+  sp.f = k * q.depth0 * q.n;
   sp.K = k * q.n * q.n.transpose();
-  const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
-  const Vec3 d = Pt * (q.x0 - p - q.anchor);
-  const Vec3 ft = -k * d;
-  const double lim = p_.friction * std::max(fn, 0.0);
-  const double ftn = ft.norm();
-  if (ftn <= lim) {
-    sp.f += ft;
-    sp.K += k * Pt;
-  } else if (ftn > 0.0) {
-    sp.f += ft * (lim / ftn);
+  if (q.sliding) {
+    sp.f += q.slide;
+    return;
   }
+  const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
+  sp.f -= k * (Pt * (q.x0 - p0_[f] - q.anchor));
+  sp.K += k * Pt;
+}
+
+// Stick or slide at the start of the step: the stick spring's force against mu f_n.
+void FingertipContact::decide_friction(int f, Sample& q) const {
+  const double k = p_.pressure_stiffness * q.w;
+  const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
+  const Vec3 ft = -k * (Pt * (q.x0 - p0_[f] - q.anchor));
+  const double lim = p_.friction * std::max(k * q.depth0, 0.0);
+  const double ftn = ft.norm();
+  q.sliding = ftn > lim;
+  q.slide = q.sliding && ftn > 0.0 ? Vec3(ft * (lim / ftn)) : Vec3::Zero();
+}
+
+// Coulomb at the end of the solved step (rel_step: the point's motion relative to the proxy):
+// a sticking contact whose spring would leave the friction cone slides instead, and a sliding
+// one takes mu x its end normal force. Returns true if the contact changed.
+bool FingertipContact::revise_friction(Sample& q, const Vec3& p0, const Vec3& rel_step) const {
+  const double k = p_.pressure_stiffness * q.w;
+  const double lim = p_.friction * std::max(k * (q.depth0 - q.n.dot(rel_step)), 0.0);
+  const double tol = 1e-3 * lim + 1e-9;
+  if (!q.sliding) {
+    const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
+    const Vec3 ft = -k * (Pt * (q.x0 - p0 + rel_step - q.anchor));
+    const double ftn = ft.norm();
+    if (ftn <= lim + tol) return false;
+    q.sliding = true;
+    q.slide = ft * (lim / ftn);
+    return true;
+  }
+  // Friction never drives the slide: if the point moved along the friction force relative to
+  // the sphere, the contact sticks (the stick spring starting from the sliding force), so
+  // the direction does not flip from step to step.
+  const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
+  if ((Pt * rel_step).dot(q.slide) > 0.0) {
+    q.sliding = false;
+    q.anchor = q.x0 - p0 + Pt * q.slide / k;
+    return true;
+  }
+  const double sn = q.slide.norm();
+  if (std::abs(sn - lim) <= tol) return false;
+  q.slide = sn > 0.0 ? Vec3(q.slide * (lim / sn)) : Vec3::Zero();
+  return true;
 }
 
 void FingertipContact::rebuild_springs() {
@@ -231,6 +269,7 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
         q.depth0 = p_.radius - d;
         q.x0 = x;
         q.anchor = x - p0;
+        decide_friction(f, q);
         F.now.push_back(q);
         changed = true;
       }
@@ -238,6 +277,9 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
     if (F.now.size() > nold)
       std::inplace_merge(F.now.begin(), F.now.begin() + nold, F.now.end(),
                          [](const Sample& a, const Sample& b) { return a.id < b.id; });
+    // Coulomb's law on the solved step.
+    for (Sample& q : F.now)
+      changed = revise_friction(q, p0, point(x_new, q.tri, q.b) - q.x0 - dp) || changed;
   }
   if (changed) rebuild_springs();
   return changed;

@@ -80,6 +80,9 @@ class FingertipContact final : public cloth::StepContacts {
     Vec3 anchor = Vec3::Zero();    // friction anchor, relative to the proxy centre
     bool slipping = false;
     double fn = 0.0;               // normal force at the end of the last step, N
+    // This step's friction: sliding with force `slide` (N, on the cloth), or sticking.
+    bool sliding = false;
+    Vec3 slide = Vec3::Zero();
   };
   struct Finger {
     std::vector<Sample> now, prev;  // this step's contacts (sorted by id), last step's
@@ -88,6 +91,8 @@ class FingertipContact final : public cloth::StepContacts {
   };
   void find_samples(int f, const cloth::ClothState& s, const Vec3& proxy_at);
   void make_spring(int f, const Sample& q, cloth::PointSpring& sp) const;
+  void decide_friction(int f, Sample& q) const;
+  bool revise_friction(Sample& q, const Vec3& p0, const Vec3& rel_step) const;
   void sample_point(int t, int k, double b[3]) const;
   Vec3 point(const std::vector<Vec3>& x, int tri, const double b[3]) const;
   double exact_penetration(int f, const std::vector<Vec3>& x, const Vec3& c) const;

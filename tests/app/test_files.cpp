@@ -345,6 +345,19 @@ TEST_F(FilesTest, SceneUnknownTopLevelKey) {
                       {path, at_line(3), "key 'gravity'", "unknown key", "physics"});
 }
 
+// Direct coupling solves the fingertip spheres with the cloth: the local patch's kernel keys are
+// rejected there, with what replaced them.
+TEST_F(FilesTest, SceneKernelKeyWithDirectCoupling) {
+  const auto path = (dir_ / "scene.toml").string();
+  expect_config_error(
+      [&] { scene(kScene + "\n[haptics]\nlocal_patch = \"off\"\nkernel_radius = 0.02\n"); },
+      {path, at_line(19), "haptics.kernel_radius", "local_patch = \"on\"", "contact_stiffness"});
+  expect_config_error(
+      [&] { scene(kScene + "\n[haptics]\nlocal_patch = \"off\"\ncontact_stiffness = -1\n"); },
+      {path, at_line(19), "haptics.contact_stiffness", "must be > 0"});
+  EXPECT_NO_THROW(scene(kScene + "\n[haptics]\nlocal_patch = \"on\"\nkernel_radius = 0.02\n"));
+}
+
 TEST_F(FilesTest, SceneAlphaOutOfRange) {
   const auto path = (dir_ / "scene.toml").string();
   expect_config_error([&] { scene(with_line(kScene, 14, "alpha = 0.3")); },

@@ -228,10 +228,6 @@ inline PinchResult pinch_handkerchief(const PinchSpec& spec) {
     p_prev = p_now;
     Vec3 rendered = Vec3::Zero();
     for (int f = 0; f < 2; ++f) rendered += sim.last_snapshot().proxy[f].force;
-    if ((from_fingers + rendered).norm() > res.third_law && std::getenv("TRACE"))
-      std::printf("t %.3f mismatch %.3e rendered %.3e %.3e %.3e events %llu\n", h.last_report().time,
-                  (from_fingers + rendered).norm(), rendered.x(), rendered.y(), rendered.z(),
-                  (unsigned long long)sim.integrator().events().total());
     res.third_law = std::max(res.third_law, (from_fingers + rendered).norm());
     const auto& rep = h.last_report();
     if (rep.time < spec.hold - 1.0) return;

@@ -44,4 +44,13 @@ struct LimitOptions {
 /// supernodal), the overhead ratio, and the factorization's flop count and fill.
 nlohmann::json limit(const LimitOptions& opt);
 
+struct FidelityOptions {
+  bool quick = false;
+  bool verbose = true;
+};
+
+/// The touch against physics: the drum press against membrane theory per mesh, and the pinched
+/// handkerchief against its weight (tools/bench/fidelity.cpp).
+nlohmann::json fidelity(const FidelityOptions& opt);
+
 }  // namespace hapticloth::bench

@@ -6,6 +6,7 @@
 //   hapticloth-bench accuracy [--quick] --json [--plot OUT.png]
 //   hapticloth-bench stability [--quick] [--random-steps N] --json [--plot OUT.png]
 //   hapticloth-bench limit [--quick] --json
+//   hapticloth-bench fidelity [--quick] --json
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -126,6 +127,11 @@ int main(int argc, char** argv) {
                "per mesh size, with the factorization's flop count");
   lim->add_flag("--quick", quick, "a few steps per size");
   lim->add_flag("--json", json, "one JSON object on one line");
+  auto* fid = cli.add_subcommand(
+      "fidelity", "the touch against physics: drum press vs membrane theory per mesh, pinched "
+                  "handkerchief vs its weight (BENCHMARKS.md, Force fidelity)");
+  fid->add_flag("--quick", quick, "two meshes and one pinch");
+  fid->add_flag("--json", json, "one JSON object on one line");
   CLI11_PARSE(cli, argc, argv);
 
   try {
@@ -147,6 +153,11 @@ int main(int argc, char** argv) {
       o.quick = quick;
       o.source_dir = HAPTICLOTH_SOURCE_DIR;
       return finish(bench::limit(o), json, "");
+    }
+    if (*fid) {
+      bench::FidelityOptions o;
+      o.quick = quick;
+      return finish(bench::fidelity(o), json, "");
     }
     if (*haptic) {
       app::Scene scene = app::load_scene(haptic_scene);
