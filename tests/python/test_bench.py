@@ -124,10 +124,14 @@ def test_stability_quick_map():
             assert c["restores"] == 0, c["label"]
             if c["dt_ms"] == 1.0:  # direct coupling at the haptic rate passes everything
                 assert c["pass"], c
+                assert c["max_penetration_mm"] <= 0.5, c
         elif c["restores"]:  # alpha 0.5 on the 1000x stiffer cloth blows up, then is damped
             assert c["alpha_fallbacks"] == 1 and c["stiffness_scale"] >= 100, c
     for r in j["random"]:
         assert "non-finite" not in r.get("failure", "")
+        # no cloth point more than 0.5 mm inside a fingertip sphere, checked on every step
+        assert r["max_penetration_mm"] <= 0.5, r
+        assert r["contact_ticks"] > 0
         assert r["max_kinetic_j"] <= r["energy_bound_j"]
         assert r["restores"] == 0
 

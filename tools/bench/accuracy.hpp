@@ -6,6 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "app/scene_file.hpp"
+
 namespace hapticloth::bench {
 
 struct AccuracyOptions {
@@ -52,5 +54,9 @@ struct FidelityOptions {
 /// The touch against physics: the drum press against membrane theory per mesh, and the pinched
 /// handkerchief against its weight (tools/bench/fidelity.cpp).
 nlohmann::json fidelity(const FidelityOptions& opt);
+
+/// The scene's cloth pinched at its middle by both fingertips (direct coupling, the scene's
+/// solver) for `seconds` on the stepped clock: the global step's time with both in contact.
+nlohmann::json pinch_step(const app::Scene& scene, double seconds);
 
 }  // namespace hapticloth::bench

@@ -10,6 +10,7 @@
 #include <iostream>
 
 #include "accuracy.hpp"
+#include "app/scene_file.hpp"
 #include "support/touch_scenes.hpp"
 
 namespace hapticloth::bench {
@@ -98,6 +99,48 @@ json fidelity(const FidelityOptions& opt) {
     out["slip"].push_back(pinch_row(s, opt.verbose));
   }
   return out;
+}
+
+json pinch_step(const app::Scene& scene, double seconds) {
+  const cloth::ClothModel model = app::build_model(scene);
+  haptics::SessionConfig sc = scene.haptics;
+  sc.local_patch = false;
+  sc.mapping = haptics::DeviceMapping{};
+  sc.try_realtime = false;
+  cloth::IntegratorConfig ic = scene.integrator;
+  ic.dt = 1.0 / sc.haptic_rate;  // direct coupling steps at the haptic period
+  // Pinch the middle of the cloth from above and below, 2 mm squeeze each, and hold.
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+  for (const auto& p : model.rest_positions) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const Eigen::Vector3d at = 0.5 * (lo + hi) + Eigen::Vector3d(0.0011, 0.0007, 0.0);
+  const double r = sc.finger.radius, sq = 0.002;
+  devices::Trajectory tr(2);
+  for (int f = 0; f < 2; ++f) {
+    const double side = f == 0 ? 1.0 : -1.0;
+    tr.add(f, 0.0, at + Eigen::Vector3d(0, 0, side * r));
+    tr.add(f, 0.05, at + Eigen::Vector3d(0, 0, side * (r - sq)));
+    tr.add(f, seconds, at + Eigen::Vector3d(0, 0, side * (r - sq)));
+  }
+  test::TouchRig rig(cloth::ClothModel(model), std::move(tr), sc, ic, cloth::rest_state(model), scene.solver);
+  long both = 0, ticks = 0;
+  rig.session->run_stepped(seconds, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
+    ++ticks;
+    both += h.last_report().finger[0].in_contact && h.last_report().finger[1].in_contact;
+  });
+  const haptics::SessionReport rep = rig.session->report();
+  const auto& st = rep.sim_step_us;
+  return {{"benchmark", "step-pinch"},
+          {"scene", scene.name},
+          {"triangles", model.num_triangles()},
+          {"solver", scene.solver},
+          {"both_fingers_in_contact", static_cast<double>(both) / std::max(1L, ticks)},
+          {"sim_step_us", {{"p50", st.quantile(0.5)}, {"p99", st.quantile(0.99)}, {"max", st.max()}}},
+          {"tick_compute_us", {{"p50", rep.haptic.compute_us.quantile(0.5)}, {"p99", rep.haptic.compute_us.quantile(0.99)}}},
+          {"contact_revisions", rep.contact_revisions},
+          {"max_penetration_mm", rep.max_penetration * 1e3}};
 }
 
 }  // namespace hapticloth::bench

@@ -1,5 +1,6 @@
 // hapticloth-bench: benchmarks that print machine-readable results.
-//   hapticloth-bench step --scene FILE [--solver cholmod|pcg] [--dt S] [--alpha A] [--steps N] --json
+//   hapticloth-bench step --scene FILE [--solver cholmod|pcg] [--dt S] [--alpha A] [--steps N]
+//                         [--pinch] --json
 //   hapticloth-bench haptic [--scene FILE] [--duration S] --json
 //   hapticloth-bench udp [options of hapticloth-bench-udp] --json
 //   hapticloth-bench transport [options of hapticloth-bench-transport] --json
@@ -93,6 +94,9 @@ int main(int argc, char** argv) {
   step->add_option("--pcg-tolerance", tol, "relative residual of the PCG solve");
   step->add_option("--steps", steps, "number of steps from the rest state")->check(CLI::PositiveNumber);
   step->add_flag("--json", json, "one JSON object on stdout");
+  bool pinch = false;
+  step->add_flag("--pinch", pinch, "both fingertips pinch the cloth's middle (direct coupling, "
+                                    "stepped clock, --steps haptic ticks)");
 
   auto* haptic = cli.add_subcommand(
       "haptic", "the 1 kHz haptic loop in real time with the mock device and the global "
@@ -177,6 +181,10 @@ int main(int argc, char** argv) {
     if (alpha > 0) scene.integrator.alpha = alpha;
     if (tol > 0) scene.pcg.tolerance = tol;
     scene.integrator.validate();
+    if (pinch) {
+      std::cout << bench::pinch_step(scene, steps / scene.haptics.haptic_rate).dump(json ? -1 : 1) << "\n";
+      return 0;
+    }
     const app::RunSummary r = app::run_headless(scene, steps);
     std::cout << (json ? r.to_json() + "\n" : r.to_text());
     return r.finite ? 0 : 1;
