@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "haptics/geometry.hpp"
@@ -77,6 +78,51 @@ void FingertipContact::sample_point(int t, int k, double b[3]) const {
   b[0] = 1.0 - b[1] - b[2];
 }
 
+// The samples of triangle t (positions x) whose centroid can lie within R of c, in ascending
+// order: the sphere's reach projected on the triangle's plane is an ellipse in barycentric
+// coordinates (b - b*)^T G (b - b*) <= R^2 - h^2 (G the Gram matrix of the edges, b* the foot
+// of c, h its height); its bounding box picks the rows and columns of the sub-triangle grid.
+// A triangle the size of the fingertip or smaller is enumerated whole.
+template <class Fn>
+void FingertipContact::for_samples_near(int t, const std::vector<Vec3>& x, const Vec3& c,
+                                        double R, Fn&& fn) const {
+  const int m = sub_[t];
+  const auto& tr = tris_[t];
+  const Vec3 e1 = x[tr[1]] - x[tr[0]], e2 = x[tr[2]] - x[tr[0]], d = c - x[tr[0]];
+  const double g11 = e1.dot(e1), g12 = e1.dot(e2), g22 = e2.dot(e2);
+  const double det = g11 * g22 - g12 * g12;
+  double lo1 = 0.0, hi1 = 1.0, lo2 = 0.0, hi2 = 1.0;
+  if (m > 1 && det > 1e-30) {
+    const double r1 = e1.dot(d), r2 = e2.dot(d);
+    const double b1 = (g22 * r1 - g12 * r2) / det, b2 = (g11 * r2 - g12 * r1) / det;
+    const double h2 = std::max(0.0, (d - b1 * e1 - b2 * e2).squaredNorm());
+    const double s2 = R * R - h2;
+    if (s2 <= 0.0) return;
+    const double w1 = std::sqrt(s2 * g22 / det), w2 = std::sqrt(s2 * g11 / det);
+    lo1 = b1 - w1, hi1 = b1 + w1, lo2 = b2 - w2, hi2 = b2 + w2;
+  }
+  for (int inverted = 0; inverted < 2; ++inverted) {
+    const double o = inverted ? 2.0 / 3.0 : 1.0 / 3.0;
+    const int rows = inverted ? m - 1 : m;
+    const int base = inverted ? m * (m + 1) / 2 : 0;
+    const int i0 = std::max(0, static_cast<int>(std::floor(lo1 * m - o)));
+    const int i1 = std::min(rows - 1, static_cast<int>(std::ceil(hi1 * m - o)));
+    const int j0 = std::max(0, static_cast<int>(std::floor(lo2 * m - o)));
+    for (int i = i0; i <= i1; ++i) {
+      const int row_len = rows - i;
+      const int j1 = std::min(row_len - 1, static_cast<int>(std::ceil(hi2 * m - o)));
+      const int row_start = base + i * rows - i * (i - 1) / 2;
+      for (int j = j0; j <= j1; ++j) {
+        double b[3];
+        b[1] = (i + o) / m;
+        b[2] = (j + o) / m;
+        b[0] = 1.0 - b[1] - b[2];
+        fn(row_start + j, b);
+      }
+    }
+  }
+}
+
 Vec3 FingertipContact::point(const std::vector<Vec3>& x, int tri, const double b[3]) const {
   const auto& t = tris_[tri];
   return b[0] * x[t[0]] + b[1] * x[t[1]] + b[2] * x[t[2]];
@@ -94,15 +140,18 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
     const int t = F.cand[c];
     const int ns = sub_[t] * sub_[t];
     const double w = model_.elements[t].area / ns;
-    for (int k = 0; k < ns; ++k) {
+    double vmax = 0.0;
+    for (int k = 0; k < 3; ++k) vmax = std::max(vmax, s.v[tris_[t][k]].norm());
+    const double R = p_.radius + (proxy_at - p).norm() + h_ * vmax;
+    for_samples_near(t, s.x, p, R, [&](int k, const double* b) {
       Sample q;
-      sample_point(t, k, q.b);
+      for (int i = 0; i < 3; ++i) q.b[i] = b[i];
       const Vec3 x = point(s.x, t, q.b);
       const Vec3 v = point(s.v, t, q.b);
       const double d = (x - p).norm();
       const double depth = p_.radius - d;
       const double ahead = p_.radius - (x + h_ * v - proxy_at).norm();
-      if ((depth <= 0.0 && ahead <= 0.0) || d < 1e-12) continue;
+      if ((depth <= 0.0 && ahead <= 0.0) || d < 1e-12) return;
       q.id = first_[t] + k;
       q.tri = t;
       q.w = w;
@@ -118,7 +167,7 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
       }
       decide_friction(f, q);
       F.now.push_back(q);
-    }
+    });
   }
 }
 
@@ -156,19 +205,20 @@ void FingertipContact::decide_friction(int f, Sample& q) const {
 
 // Coulomb at the end of the solved step (rel_step: the point's motion relative to the proxy):
 // a sticking contact whose spring would leave the friction cone slides instead, and a sliding
-// one takes mu x its end normal force. Returns true if the contact changed.
-bool FingertipContact::revise_friction(Sample& q, const Vec3& p0, const Vec3& rel_step) const {
+// one takes mu x its end normal force. Returns how much its force changed, N (infinity when
+// it goes back to sticking).
+double FingertipContact::revise_friction(Sample& q, const Vec3& p0, const Vec3& rel_step) const {
   const double k = p_.pressure_stiffness * q.w;
   const double lim = p_.friction * std::max(k * (q.depth0 - q.n.dot(rel_step)), 0.0);
-  const double tol = 1e-3 * lim + 1e-9;
+  const double tol = 5e-3 * lim + 1e-9;
   if (!q.sliding) {
     const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
     const Vec3 ft = -k * (Pt * (q.x0 - p0 + rel_step - q.anchor));
     const double ftn = ft.norm();
-    if (ftn <= lim + tol) return false;
+    if (ftn <= lim + tol) return 0.0;
     q.sliding = true;
     q.slide = ft * (lim / ftn);
-    return true;
+    return ftn - lim;
   }
   // Friction never drives the slide: if the point moved along the friction force relative to
   // the sphere, the contact sticks (the stick spring starting from the sliding force), so
@@ -177,12 +227,12 @@ bool FingertipContact::revise_friction(Sample& q, const Vec3& p0, const Vec3& re
   if ((Pt * rel_step).dot(q.slide) > 0.0) {
     q.sliding = false;
     q.anchor = q.x0 - p0 + Pt * q.slide / k;
-    return true;
+    return std::numeric_limits<double>::infinity();
   }
   const double sn = q.slide.norm();
-  if (std::abs(sn - lim) <= tol) return false;
+  if (std::abs(sn - lim) <= tol) return 0.0;
   q.slide = sn > 0.0 ? Vec3(q.slide * (lim / sn)) : Vec3::Zero();
-  return true;
+  return std::abs(sn - lim);
 }
 
 void FingertipContact::rebuild_springs() {
@@ -251,17 +301,17 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
     for (int c = 0; c < F.ncand; ++c) {
       const int t = F.cand[c];
       const int ns = sub_[t] * sub_[t];
-      for (int k = 0; k < ns; ++k) {
+      for_samples_near(t, x_new, p1, p_.radius, [&](int k, const double* b) {
         const int id = first_[t] + k;
         while (j < nold && F.now[j].id < id) ++j;
-        if (j < nold && F.now[j].id == id) continue;
+        if (j < nold && F.now[j].id == id) return;
         Sample q;
-        sample_point(t, k, q.b);
+        for (int i = 0; i < 3; ++i) q.b[i] = b[i];
         const Vec3 x1 = point(x_new, t, q.b);
-        if (p_.radius - (x1 - p1).norm() <= kAddDepth) continue;
+        if (p_.radius - (x1 - p1).norm() <= kAddDepth) return;
         const Vec3 x = point(s0_->x, t, q.b);
         const double d = (x - p0).norm();
-        if (d < 1e-12) continue;
+        if (d < 1e-12) return;
         q.id = id;
         q.tri = t;
         q.w = model_.elements[t].area / ns;
@@ -272,14 +322,19 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
         decide_friction(f, q);
         F.now.push_back(q);
         changed = true;
-      }
+      });
     }
     if (F.now.size() > nold)
       std::inplace_merge(F.now.begin(), F.now.begin() + nold, F.now.end(),
                          [](const Sample& a, const Sample& b) { return a.id < b.id; });
-    // Coulomb's law on the solved step.
-    for (Sample& q : F.now)
-      changed = revise_friction(q, p0, point(x_new, q.tri, q.b) - q.x0 - dp) || changed;
+    // Coulomb's law on the solved step; corrections smaller than 0.2% of the finger's normal
+    // force are kept for the next step rather than solved again.
+    double fchange = 0.0, fscale = 0.0;
+    for (Sample& q : F.now) {
+      fchange += revise_friction(q, p0, point(x_new, q.tri, q.b) - q.x0 - dp);
+      fscale += p_.pressure_stiffness * q.w * std::max(q.depth0, 0.0);
+    }
+    changed = changed || fchange > 2e-3 * fscale + 1e-6;
   }
   if (changed) rebuild_springs();
   return changed;
@@ -297,6 +352,7 @@ double FingertipContact::exact_penetration(int f, const std::vector<Vec3>& x, co
 }
 
 void FingertipContact::end_step(const cloth::ClothState& s) {
+  size_t next = 0;
   for (int f = 0; f < fingers_; ++f) {
     ProxyResult& r = out_[f];
     const cloth::ProxyNode& P = integ_.proxies()[f];
@@ -313,9 +369,9 @@ void FingertipContact::end_step(const cloth::ClothState& s) {
     Vec3 on_cloth = Vec3::Zero(), nsum = Vec3::Zero(), csum = Vec3::Zero();
     double fmax = -1.0, fpos = 0.0;
     bool all_slip = true;
-    cloth::PointSpring sp;
+    const auto& springs = integ_.point_springs();  // as solved: F.now in order, finger by finger
     for (Sample& q : F.now) {
-      make_spring(f, q, sp);
+      const cloth::PointSpring& sp = springs[next++];
       const Vec3 x1 = point(s.x, q.tri, q.b);
       // What the cloth got in the step: the spring linearized at the start, at the end state.
       const Vec3 got = sp.f - sp.K * (x1 - q.x0 - P.displacement);
