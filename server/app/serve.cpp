@@ -38,10 +38,11 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
   } else if (fits) {
     os << "direct coupling, no local patch: the global step takes " << step_ms
        << " ms (median at start-up), within the " << haptic_period_ms
-       << " ms haptic period, so the haptic loop uses the whole cloth";
+       << " ms haptic period: the fingertips are spheres solved with the whole cloth";
   } else {
     os << "local refinement off (asked for): the global step " << step_ms << " ms > haptic period "
-       << haptic_period_ms << " ms; the cloth is extrapolated at constant velocity between steps";
+       << haptic_period_ms << " ms; the fingertips are solved with the cloth and the force of the"
+       << " last step is rendered until the next";
   }
   s.push_back(os.str());
   if (sc.haptics.local_patch && sc.integrator.alpha < 1.0) {
@@ -49,6 +50,13 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
     a << "alpha " << sc.integrator.alpha << " < 1 with local refinement: on stiff cloth this"
       << " abandons steps (hapticloth-bench stability, BENCHMARKS.md); the integrator switches to"
       << " alpha 1 at the first energy explosion, and alpha 1 is the recommended setting here";
+    s.push_back(a.str());
+  }
+  if (!sc.haptics.local_patch && sc.integrator.alpha < 1.0) {
+    std::ostringstream a;
+    a << "alpha " << sc.integrator.alpha << " < 1 asked for, alpha 1 used: the fingertip contacts"
+      << " are stiff springs in the implicit step, which only backward Euler damps"
+      << " (docs/contact.md)";
     s.push_back(a.str());
   }
   s.push_back(sc.material.viscous() ? "strain-rate (viscous) terms on: the material has viscosity"
@@ -87,16 +95,15 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   haptics::SessionConfig sc = scene.haptics;
   scene.haptics.local_patch = sc.local_patch =
       scene.local_patch == "on" || (scene.local_patch == "auto" && median_ms > 1000.0 / sc.haptic_rate);
-  // Direct coupling needs the global step at the haptic rate: with a longer step the contact
-  // (the force rendered against the extrapolated cloth, the cloth pushed once per step) falls
-  // into a limit cycle (hapticloth-bench accuracy, press and pinch at dt 5 ms: force errors of
-  // 4x-10x the contact force; BENCHMARKS.md). So the step is shortened to the haptic period.
+  // Direct coupling renders the force of the last global step (the fingertips are solved with
+  // the cloth): with a longer step it stays stable but the force changes only once per step,
+  // a staircase the hand feels. So the step is shortened to the haptic period.
   std::string dt_note;
   const double period = 1.0 / sc.haptic_rate;
   if (!sc.local_patch && scene.integrator.dt > period * (1.0 + 1e-9)) {
     std::ostringstream os;
     os << "global dt " << scene.integrator.dt * 1e3 << " ms shortened to the haptic period "
-       << period * 1e3 << " ms: direct coupling at a longer step oscillates";
+       << period * 1e3 << " ms: direct coupling renders the force of each global step";
     dt_note = os.str();
     scene.integrator.dt = period;
   }

@@ -15,8 +15,13 @@ std::vector<std::array<int, 3>> triangles_of(const cloth::ClothModel& m) {
   for (const auto& e : m.elements) t.push_back({e.v[0], e.v[1], e.v[2]});
   return t;
 }
+// Direct coupling puts the fingertip proxies in the system, with contacts far stiffer than the
+// cloth: backward Euler (alpha 1, L-stable) damps them; at alpha 0.5 they ring and the step
+// blows up (hapticloth-bench stability). The server's stages say so when the scene asks for
+// less.
 cloth::IntegratorConfig with_proxies(cloth::IntegratorConfig c, int proxies) {
   c.proxies = proxies;
+  if (proxies > 0) c.alpha = 1.0;
   return c;
 }
 double mean_edge(const cloth::ClothModel& m, const std::vector<std::array<int, 3>>& tris) {

@@ -86,10 +86,10 @@ def test_press_force(accuracy):
     assert direct["force_err_rel"] < 0.3
     patch = find(runs(accuracy, "press", "local-patch"), dt_ms=20.0)
     naive = find(runs(accuracy, "press", "direct-long-step"), dt_ms=20.0)
-    # direct coupling with a 20 ms global step rings (limit cycle); the local patch does not
-    assert naive["force_err_rel"] > 2.0
+    # the fingertip solved with the cloth in the implicit step stays stable with a 20 ms global
+    # step (the force is held between steps); the local patch too
+    assert naive["force_err_rel"] < 0.3, naive
     assert patch["force_err_rel"] < 0.5
-    assert not naive["pareto"]
 
 
 def test_pinch_force_at_the_haptic_rate(accuracy):

@@ -65,7 +65,9 @@ def test_udp_rig_presses_the_cloth_through_the_server(tmp_path):
     assert report["device_counters"]["samples"] > 2000
     # The press was felt: contact ticks and a force on the finger, all finite.
     assert report["contact_ticks"] > 500
-    assert 0.05 < report["max_force_n"] <= 8.0
+    # Pushing a hanging membrane (tension about 1 N/m, 0.2 m below the pins) 3 mm sideways
+    # takes about 2 pi T d / ln(R / a) ~ 0.006-0.01 N.
+    assert 0.003 < report["max_force_n"] <= 8.0
     forces = []
     with log.open() as f:
         for row in csv.DictReader(f):
@@ -74,4 +76,4 @@ def test_udp_rig_presses_the_cloth_through_the_server(tmp_path):
             forces.append((fx, fy, fz))
     assert len(forces) > 2000
     # pressing from the front (-y) into the cloth: the cloth pushes the finger back (-y)
-    assert min(f[1] for f in forces) < -0.05
+    assert min(f[1] for f in forces) < -0.003
