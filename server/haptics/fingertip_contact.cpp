@@ -56,31 +56,10 @@ FingertipContact::FingertipContact(const cloth::ClothModel& model,
   integ_.set_contacts(this);
 }
 
-// Centroid of sub-triangle k of an m x m subdivision, in barycentric coordinates: the m^2
-// sub-triangles are m(m+1)/2 upright ones (i + j <= m - 1) and m(m-1)/2 inverted ones.
-void FingertipContact::sample_point(int t, int k, double b[3]) const {
-  const int m = sub_[t];
-  const int up = m * (m + 1) / 2;
-  const bool inverted = k >= up;
-  int idx = inverted ? k - up : k;
-  const int rows = inverted ? m - 1 : m;
-  int i = 0;
-  for (int row = 0; row < rows; ++row) {  // row i holds rows - i sub-triangles
-    if (idx < rows - row) {
-      i = row;
-      break;
-    }
-    idx -= rows - row;
-  }
-  const int j = idx;
-  const double o = inverted ? 2.0 / 3.0 : 1.0 / 3.0;
-  b[1] = (i + o) / m;
-  b[2] = (j + o) / m;
-  b[0] = 1.0 - b[1] - b[2];
-}
-
 // The samples of triangle t (positions x) whose centroid can lie within R of c, in ascending
-// order: the sphere's reach projected on the triangle's plane is an ellipse in barycentric
+// order. Sample k is the centroid of sub-triangle k of an m x m subdivision: m(m+1)/2 upright
+// ones (rows i, columns j, i + j <= m - 1, centroid at b1 = (i + 1/3) / m, b2 = (j + 1/3) / m),
+// then m(m-1)/2 inverted ones (offset 2/3), row by row. the sphere's reach projected on the triangle's plane is an ellipse in barycentric
 // coordinates (b - b*)^T G (b - b*) <= R^2 - h^2 (G the Gram matrix of the edges, b* the foot
 // of c, h its height); its bounding box picks the rows and columns of the sub-triangle grid.
 // A triangle the size of the fingertip or smaller is enumerated whole.

@@ -93,7 +93,6 @@ class FingertipContact final : public cloth::StepContacts {
   void make_spring(int f, const Sample& q, cloth::PointSpring& sp) const;
   void decide_friction(int f, Sample& q) const;
   double revise_friction(Sample& q, const Vec3& p0, const Vec3& rel_step) const;
-  void sample_point(int t, int k, double b[3]) const;
   template <class Fn>
   void for_samples_near(int t, const std::vector<Vec3>& x, const Vec3& c, double R, Fn&& fn) const;
   Vec3 point(const std::vector<Vec3>& x, int tri, const double b[3]) const;
