@@ -16,6 +16,12 @@ double ms_since(Clock::time_point t0) {
 
 constexpr double kInvSqrt2 = 0.70710678118654752440;
 
+// Adds the 3x3 block B at `offset` of a CSR value array whose rows are `stride` apart.
+inline void add_block(double* val, int offset, int stride, const Mat3& B) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) val[offset + r * stride + c] += B(r, c);
+}
+
 // Symmetric 3x3 as (xx, yy, zz, xy, xz, yz).
 struct Sym3 {
   double m[6];
@@ -314,11 +320,7 @@ bool Integrator::assemble(const ClothState& s, double h, JacobianMode mode) {
   }
   energy_old_ = ke + e_el + eg;
   energy_scale_ = ke + std::abs(e_el) + energy_floor_;
-  if (cfg_.proxies > 0) {
-    A_base_.assign(A_.val.begin(), A_.val.end());
-    rhs_base_ = rhs_;
-    assemble_proxies(s, h);
-  }
+  if (cfg_.proxies > 0) assemble_proxies(s, h);
   return rhs_.allFinite() && std::isfinite(energy_old_);
 }
 
@@ -334,26 +336,31 @@ void Integrator::assemble_proxies(const ClothState& s, double h) {
   const double ah = alpha_ * h, aahh = ah * ah;
   const int nf = sys_.free_nodes;
   double* const val = A_.val.data();
-  auto add_block = [&](int offset, int stride, const Mat3& B) {
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) val[offset + r * stride + c] += B(r, c);
-  };
   for (int j = 0; j < cfg_.proxies; ++j) {
     const ProxyNode& p = proxies_[j];
     const int node = nf + j;
-    add_block(sys_.diag_offset[node], sys_.row_stride[node],
+    add_block(val, sys_.diag_offset[node], sys_.row_stride[node],
               (aahh * p.stiffness + ah * p.damping) * Mat3::Identity());
     rhs_.segment<3>(3 * node) += h * (p.stiffness * (p.target - p.x) + p.damping * p.target_velocity);
   }
-  for (const PointSpring& sp : springs_) {
+  add_springs(s, h, springs_, 1.0);
+}
+
+// The point springs' terms of eq. 9, times `sign` (-1 takes a set back out before a re-solve).
+void Integrator::add_springs(const ClothState& s, double h, const std::vector<PointSpring>& springs,
+                             double sign) {
+  const double ah = alpha_ * h, aahh = ah * ah;
+  const int nf = sys_.free_nodes;
+  double* const val = A_.val.data();
+  for (const PointSpring& sp : springs) {
     const auto& e = model_.elements[sp.tri];
     const int node = nf + sp.proxy;
     Vec3 vq = Vec3::Zero();
     for (int k = 0; k < 3; ++k) vq += sp.b[k] * s.v[e.v[k]];
-    const Vec3 g = h * (sp.f - ah * (sp.K * vq));
+    const Vec3 g = sign * h * (sp.f - ah * (sp.K * vq));
     rhs_.segment<3>(3 * node) -= g;
-    const Mat3 Kh = aahh * sp.K;
-    add_block(sys_.diag_offset[node], sys_.row_stride[node], Kh);
+    const Mat3 Kh = sign * aahh * sp.K;
+    add_block(val, sys_.diag_offset[node], sys_.row_stride[node], Kh);
     const auto& off = sys_.block_offset[sp.tri];
     for (int k = 0; k < 3; ++k) {
       const int fk = model_.free_index[e.v[k]];
@@ -361,10 +368,10 @@ void Integrator::assemble_proxies(const ClothState& s, double h) {
       rhs_.segment<3>(3 * fk) += sp.b[k] * g;
       // corner row: the proxy's columns come last in it; the proxy's row lists every free node
       const int corner_proxy = A_.rowptr[3 * fk] + sys_.row_stride[fk] - 3 * (cfg_.proxies - sp.proxy);
-      add_block(corner_proxy, sys_.row_stride[fk], -sp.b[k] * Kh);
-      add_block(A_.rowptr[3 * node] + 3 * fk, sys_.row_stride[node], -sp.b[k] * Kh);
+      add_block(val, corner_proxy, sys_.row_stride[fk], -sp.b[k] * Kh);
+      add_block(val, A_.rowptr[3 * node] + 3 * fk, sys_.row_stride[node], -sp.b[k] * Kh);
       for (int l = 0; l < 3; ++l)
-        if (off[k * 3 + l] >= 0) add_block(off[k * 3 + l], sys_.row_stride[fk], sp.b[k] * sp.b[l] * Kh);
+        if (off[k * 3 + l] >= 0) add_block(val, off[k * 3 + l], sys_.row_stride[fk], sp.b[k] * sp.b[l] * Kh);
     }
   }
 }
@@ -473,12 +480,12 @@ Integrator::Attempt Integrator::single_step(ClothState& s, double h) {
   // Active set: a contact that would pull or a point that would pass into a fingertip changes
   // the point springs; solve again with them (warm-started from this solution).
   for (int rev = 0; contacts_ && rev < cfg_.max_contact_revisions; ++rev) {
+    springs_solved_.assign(springs_.begin(), springs_.end());
     if (!contacts_->revise(xn_, proxies_, springs_)) break;
     ++events_.contact_revisions;
     auto t3 = Clock::now();
-    std::copy(A_base_.begin(), A_base_.end(), A_.val.begin());
-    rhs_ = rhs_base_;
-    assemble_proxies(s, h);
+    add_springs(s, h, springs_solved_, -1.0);
+    add_springs(s, h, springs_, 1.0);
     const SolveStatus st2 = solver_->solve(A_, rhs_.data(), dv_.data());
     timing_.iterations += solver_->iterations();
     timing_.solve_ms += ms_since(t3);

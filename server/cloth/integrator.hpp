@@ -135,6 +135,8 @@ class Integrator {
   Attempt single_step(ClothState& s, double h);
   bool assemble(const ClothState& s, double h, JacobianMode mode);
   void assemble_proxies(const ClothState& s, double h);
+  void add_springs(const ClothState& s, double h, const std::vector<PointSpring>& springs,
+                   double sign);
   void candidate_state(const ClothState& s, double h);
   double contact_work(const ClothState& s) const;
   template <bool kViscous, bool kSpd>
@@ -151,10 +153,8 @@ class Integrator {
 
   SystemPattern sys_;
   SymCsr A_;
-  std::vector<double> A_base_;   // matrix before the proxies' terms (kept for re-solves)
-  Eigen::VectorXd rhs_base_;
   std::vector<ProxyNode> proxies_;
-  std::vector<PointSpring> springs_;
+  std::vector<PointSpring> springs_, springs_solved_;  // solved_: the set a re-solve replaces
   StepContacts* contacts_ = nullptr;
   Eigen::VectorXd rhs_, dv_, dv_prev_, guess_;  // dv_prev_: the solution before dv_
   std::vector<Vec3> f_ext_;
