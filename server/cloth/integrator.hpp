@@ -22,7 +22,7 @@ struct IntegratorConfig {
   double explosion_ratio = 1.0;   ///< energy gain per step, relative to the energy scale,
                                   ///< above which a step is an energy explosion
   int proxies = 0;                ///< massless proxy nodes solved with the cloth (fingertips)
-  int max_contact_revisions = 8;  ///< re-solves of a step whose contact set changed
+  int max_contact_revisions = 16; ///< re-solves of a step whose contact set changed
 
   /// Throws std::invalid_argument naming the offending field.
   void validate() const;

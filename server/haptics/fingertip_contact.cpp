@@ -52,7 +52,6 @@ FingertipContact::FingertipContact(const cloth::ClothModel& model,
     fing_[f].prev.reserve(1024);
   }
   integ_.point_springs().reserve(2048);
-  adds_.reserve(1024);
   integ_.set_contacts(this);
 }
 
@@ -266,30 +265,29 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
     const Vec3& p0 = proxies[f].x;
     const Vec3 dp = proxies[f].displacement;
     const Vec3 p1 = p0 + dp;
-    auto pull = [&](const Sample& q) {  // m: how far the contact would pull at the end
-      return q.n.dot(point(x_new, q.tri, q.b) - q.x0 - dp) - q.depth0;
-    };
-    // How much the contact set is off: contacts that would pull, points that would end inside
-    // the sphere (their force, N), against the finger's normal force.
-    double set_change = 0.0, fscale = 0.0;
-    for (const Sample& q : F.now) {
-      const double k = p_.pressure_stiffness * q.w;
-      fscale += k * std::max(q.depth0, 0.0);
-      if (pull(q) > kPullDepth) set_change += k * pull(q);
-    }
-    adds_.clear();
+    // Contacts that would pull at the end of the step are released.
+    const size_t before = F.now.size();
+    F.now.erase(std::remove_if(F.now.begin(), F.now.end(),
+                               [&](const Sample& q) {
+                                 const Vec3 rel = point(x_new, q.tri, q.b) - q.x0 - dp;
+                                 return q.depth0 - q.n.dot(rel) < -kPullDepth;
+                               }),
+                F.now.end());
+    changed = changed || F.now.size() != before;
+    // Points that would end inside the sphere become contacts.
     size_t j = 0;
+    const size_t nold = F.now.size();
     for (int c = 0; c < F.ncand; ++c) {
       const int t = F.cand[c];
       const int ns = sub_[t] * sub_[t];
       for_samples_near(t, x_new, p1, p_.radius, [&](int k, const double* b) {
         const int id = first_[t] + k;
-        while (j < F.now.size() && F.now[j].id < id) ++j;
-        if (j < F.now.size() && F.now[j].id == id) return;
+        while (j < nold && F.now[j].id < id) ++j;
+        if (j < nold && F.now[j].id == id) return;
         Sample q;
         for (int i = 0; i < 3; ++i) q.b[i] = b[i];
-        const double depth1 = p_.radius - (point(x_new, t, q.b) - p1).norm();
-        if (depth1 <= kAddDepth) return;
+        const Vec3 x1 = point(x_new, t, q.b);
+        if (p_.radius - (x1 - p1).norm() <= kAddDepth) return;
         const Vec3 x = point(s0_->x, t, q.b);
         const double d = (x - p0).norm();
         if (d < 1e-12) return;
@@ -301,27 +299,21 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
         q.x0 = x;
         q.anchor = x - p0;
         decide_friction(f, q);
-        adds_.push_back(q);
-        set_change += p_.pressure_stiffness * q.w * depth1;
+        F.now.push_back(q);
+        changed = true;
       });
     }
-    // A change below 0.2% of the finger's normal force waits for the next step's contact set
-    // (it is found there) rather than a re-solve.
-    const double tol = 2e-3 * fscale + 1e-6;
-    if (set_change > tol) {
-      F.now.erase(std::remove_if(F.now.begin(), F.now.end(),
-                                 [&](const Sample& q) { return pull(q) > kPullDepth; }),
-                  F.now.end());
-      const size_t nold = F.now.size();
-      F.now.insert(F.now.end(), adds_.begin(), adds_.end());
+    if (F.now.size() > nold)
       std::inplace_merge(F.now.begin(), F.now.begin() + nold, F.now.end(),
                          [](const Sample& a, const Sample& b) { return a.id < b.id; });
-      changed = true;
+    // Coulomb's law on the solved step; corrections smaller than 0.2% of the finger's normal
+    // force are kept for the next step rather than solved again.
+    double fchange = 0.0, fscale = 0.0;
+    for (Sample& q : F.now) {
+      fchange += revise_friction(q, p0, point(x_new, q.tri, q.b) - q.x0 - dp);
+      fscale += p_.pressure_stiffness * q.w * std::max(q.depth0, 0.0);
     }
-    // Coulomb's law on the solved step, with the same tolerance.
-    double fchange = 0.0;
-    for (Sample& q : F.now) fchange += revise_friction(q, p0, point(x_new, q.tri, q.b) - q.x0 - dp);
-    changed = changed || fchange > tol;
+    changed = changed || fchange > 2e-3 * fscale + 1e-6;
   }
   if (changed) rebuild_springs();
   return changed;

@@ -108,7 +108,6 @@ class FingertipContact final : public cloth::StepContacts {
   double spacing_;
   std::vector<int> sub_, first_;  // per triangle: subdivisions, first sample id
   std::array<Finger, kMaxFingers> fing_;
-  std::vector<Sample> adds_;  // revise(): samples that would end inside a sphere
   std::array<ProxyResult, kMaxFingers> out_{};
   std::array<Vec3, kMaxFingers> last_disp_{};
   std::array<Vec3, kMaxFingers> p0_{};  // proxies at the start of the step
