@@ -1,6 +1,6 @@
 // The fingertip as a rigid sphere touching the cloth wherever they overlap, solved with the cloth
 // in the implicit step (constraint-based haptic rendering of a deformable body, with penalty
-// contacts; see docs/haptics.md "Contact").
+// contacts; docs/contact.md gives the design and the figures that chose it).
 //
 // Each fingertip is a massless proxy node of eq. 9 (cloth::ProxyNode), held to the device's
 // fingertip by the virtual coupling (spring and damper). The cloth's surface is sampled at
@@ -9,8 +9,9 @@
 // over its area along the sphere's normal, plus Coulomb friction (a tangential spring to an
 // anchor on the sphere while it sticks, mu x its normal force while it slips). Each contact is a
 // cloth::PointSpring: its stiffness is in the system matrix, so the light vertices under a
-// finger stay stable at dt 1 ms. After the solve, a contact that would pull is dropped and a
-// sample that would end inside the sphere is added, and the step is solved again (active set).
+// finger stay stable at dt 1 ms. After the solve, a contact that would pull is dropped, a sample
+// that would end inside the sphere is added, and Coulomb's law is checked on the solved step;
+// if the set changed, the step is solved again (active set).
 //
 // The force rendered to the user is minus the sum of the contact forces the cloth got in the
 // step, which is the coupling spring's force because the proxy is massless (Newton's third law,
