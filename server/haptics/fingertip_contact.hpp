@@ -62,12 +62,9 @@ class FingertipContact final : public cloth::StepContacts {
   void end_step(const cloth::ClothState& s);
 
   const ProxyResult& result(int f) const { return out_[f]; }
-  BroadPhase& broad_phase() { return bp_; }
   /// Largest depth of any cloth point (vertex, edge or face) inside a fingertip sphere, m.
   double max_penetration() const { return max_pen_; }
   std::uint64_t active_samples() const { return samples_in_contact_; }
-  int samples_per_triangle(int t) const { return sub_[t] * sub_[t]; }
-  double sample_spacing() const { return spacing_; }
 
  private:
   struct Sample {  // one contact: a sample point against one fingertip

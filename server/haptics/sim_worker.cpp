@@ -24,6 +24,17 @@ cloth::IntegratorConfig with_proxies(cloth::IntegratorConfig c, int proxies) {
   if (proxies > 0) c.alpha = 1.0;
   return c;
 }
+// The scene's fingertip as the contact model sees it.
+ContactParams contact_params(const FingerParams& f, double margin) {
+  ContactParams p;
+  p.radius = f.radius;
+  p.coupling_stiffness = f.stiffness;
+  p.coupling_damping = f.damping;
+  p.friction = f.friction;
+  p.pressure_stiffness = f.contact_stiffness;
+  p.margin = margin;
+  return p;
+}
 double mean_edge(const cloth::ClothModel& m, const std::vector<std::array<int, 3>>& tris) {
   double edge = 0.0;
   int ne = 0;
@@ -53,14 +64,8 @@ SimWorker::SimWorker(const cloth::ClothModel& model, const cloth::IntegratorConf
   if (local_patch) {
     kernel_ = std::make_unique<KernelCoupling>(model_, tris_, fingers_, kernel_r_, cp_.finger_mass);
   } else {
-    ContactParams p;
-    p.radius = fp_.radius;
-    p.coupling_stiffness = fp_.stiffness;
-    p.coupling_damping = fp_.damping;
-    p.friction = fp_.friction;
-    p.pressure_stiffness = fp_.contact_stiffness;
-    p.margin = cp_.margin;
-    tips_ = std::make_unique<FingertipContact>(model_, tris_, fingers_, p, integ_);
+    tips_ = std::make_unique<FingertipContact>(model_, tris_, fingers_,
+                                               contact_params(fp_, cp_.margin), integ_);
   }
   normals_.assign(model_.num_vertices(), Vec3::UnitZ());
   mine_.resize(model_.num_vertices());

@@ -48,11 +48,8 @@ class SimWorker {
   const ClothSnapshot& last_snapshot() const { return mine_; }
   cloth::ClothState& state_mut() { return s_; }
   const cloth::Integrator& integrator() const { return integ_; }
-  /// Direct coupling's contact (nullptr with local patches) and the patches' kernel (nullptr
-  /// with direct coupling).
-  FingertipContact* fingertips() { return tips_.get(); }
+  /// Direct coupling's contact (nullptr with local patches).
   const FingertipContact* fingertips() const { return tips_.get(); }
-  KernelCoupling* kernel() { return kernel_.get(); }
   double kernel_radius() const { return kernel_r_; }
   const Histogram& step_us() const { return step_us_; }
   std::uint64_t steps() const { return steps_; }

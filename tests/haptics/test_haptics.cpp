@@ -16,6 +16,7 @@
 #include "mock/mock_device.hpp"
 #include "support/alloc_counter.hpp"
 #include "support/fixtures.hpp"
+#include "support/touch_scenes.hpp"
 
 using namespace hapticloth;
 using haptics::Vec3;
@@ -23,17 +24,7 @@ using haptics::Vec3;
 namespace {
 
 // A horizontal 0.3 m square (z = 0) pinned on its four edges, 20 x 20 quads.
-cloth::ClothModel drum(int n = 20, double size = 0.3) {
-  cloth::GridSpec g;
-  g.width = g.height = size;
-  g.nx = g.ny = n;
-  g.origin = {-size / 2, -size / 2, 0.0};
-  const auto mesh = cloth::make_grid(g);
-  std::vector<int> pins;
-  for (const char* e : {"top", "bottom", "left", "right"})
-    for (int v : cloth::grid_edge(mesh, e)) pins.push_back(v);
-  return cloth::build_model(mesh, test::denim(), pins);
-}
+cloth::ClothModel drum(int n = 20, double size = 0.3) { return test::denim_drum(n, size); }
 
 cloth::IntegratorConfig sim_config(double dt = 0.001) {
   cloth::IntegratorConfig c;
@@ -44,14 +35,7 @@ cloth::IntegratorConfig sim_config(double dt = 0.001) {
   return c;
 }
 
-devices::DeviceOptions mock_options() {
-  devices::DeviceOptions o;
-  o.workspace.min = Vec3(-0.2, -0.2, -0.2);
-  o.workspace.max = Vec3(0.2, 0.2, 0.2);
-  o.max_force = 20.0;
-  o.max_stiffness = 5000.0;
-  return o;
-}
+devices::DeviceOptions mock_options() { return test::touch_device_options(); }
 
 // Drums start pre-stretched by 3% (a membrane without bending has no out-of-plane stiffness
 // when slack; tension gives it one, as on an embroidery hoop).

@@ -10,17 +10,7 @@ using namespace hapticloth;
 using haptics::Vec3;
 
 namespace {
-cloth::ClothModel drum() {
-  cloth::GridSpec g;
-  g.width = g.height = 0.3;
-  g.nx = g.ny = 20;
-  g.origin = {-0.15, -0.15, 0.0};
-  const auto mesh = cloth::make_grid(g);
-  std::vector<int> pins;
-  for (const char* e : {"top", "bottom", "left", "right"})
-    for (int v : cloth::grid_edge(mesh, e)) pins.push_back(v);
-  return cloth::build_model(mesh, test::denim(), pins);
-}
+cloth::ClothModel drum() { return test::denim_drum(); }
 cloth::ClothState start_state(const cloth::ClothModel& m) {
   cloth::ClothState s = cloth::rest_state(m);
   for (auto& x : s.x) x.head<2>() *= 1.03;

@@ -7,6 +7,8 @@
 
 #include "cloth/element.hpp"
 #include "cloth/material.hpp"
+#include "cloth/mesh.hpp"
+#include "cloth/model.hpp"
 
 namespace hapticloth::test {
 
@@ -27,6 +29,20 @@ inline cloth::Material denim(double viscosity = 0.0, double scale = 1.0) {
   m.warp.viscosity = 2.0 * viscosity;
   m.shear.viscosity = 0.5 * viscosity;
   return m;
+}
+
+/// A horizontal square of denim (z = 0, centred on the origin) pinned on its four edges, n x n
+/// quads: the drum of the haptics tests.
+inline cloth::ClothModel denim_drum(int n = 20, double size = 0.3) {
+  cloth::GridSpec g;
+  g.width = g.height = size;
+  g.nx = g.ny = n;
+  g.origin = {-size / 2, -size / 2, 0.0};
+  const auto mesh = cloth::make_grid(g);
+  std::vector<int> pins;
+  for (const char* e : {"top", "bottom", "left", "right"})
+    for (int v : cloth::grid_edge(mesh, e)) pins.push_back(v);
+  return cloth::build_model(mesh, denim(), pins);
 }
 
 /// A triangle in weave space and a random deformation of it: `kind` 0 = mild stretch,
