@@ -39,10 +39,15 @@ struct PcgOptions {
   /// a matrix within float rounding (relative 6e-8) of the assembled one, so use it only with
   /// tolerances well above that (the scenes use 1e-3).
   bool single_precision_matrix = false;
+  /// Precondition the hub rows (block rows far longer than a mesh's: the fingertip proxies)
+  /// together with the nodes their non-zero blocks reach as one dense block (Cholesky, at most
+  /// 24 nodes), and every other node by its 3x3 diagonal block.
+  bool hub_block = true;
 };
 
 /// Preconditioned conjugate gradients on Eigen vectors, with a 3x3 block-Jacobi
-/// preconditioner, warm start from the guess in x, and preallocated workspace (Eigen's
+/// preconditioner (plus the hub block, see PcgOptions), exactly-zero blocks left out of the
+/// product, warm start from the guess in x, and preallocated workspace (Eigen's
 /// ConjugateGradient allocates its work vectors on every call, which the 1 kHz path must not).
 std::unique_ptr<LinearSolver> make_pcg_solver(const PcgOptions& opt);
 

@@ -2,8 +2,10 @@
 #if defined(__AVX2__) && defined(__FMA__)
 #include <immintrin.h>
 #endif
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <vector>
 
@@ -29,49 +31,58 @@ namespace {
 // iteration); products accumulate in double.
 template <class T>
 struct Bsr {
-  std::vector<int> rowptr;  // per block row: first block
-  std::vector<int> xoff;    // per block: scalar offset of its column triple in x
-  std::vector<int> diag;    // per block row: index of its diagonal block
-  std::vector<T> val;       // 9 per block
+  std::vector<int> rowptr;  // per block row: first stored block
+  std::vector<int> xoff;    // per stored block: scalar offset of its column triple in x
+  std::vector<int> diag;    // per block row: column position (in scalars) of its diagonal block in A's row
+  std::vector<T> val;       // kBlock per stored block
 
   void build_pattern(const SymCsr& A) {
     const int nb = A.n / 3;
     rowptr.assign(nb + 1, 0);
-    xoff.clear();
     diag.assign(nb, -1);
+    int blocks = 0;
     for (int br = 0; br < nb; ++br) {
       const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
-      for (int k = 0; k < len; k += 3) {
-        if (A.col[o + k] == 3 * br) diag[br] = static_cast<int>(xoff.size());
-        xoff.push_back(A.col[o + k]);
-      }
-      rowptr[br + 1] = static_cast<int>(xoff.size());
+      for (int k = 0; k < len; k += 3)
+        if (A.col[o + k] == 3 * br) diag[br] = k;
+      blocks += len / 3;
       if (diag[br] < 0) throw std::invalid_argument("pcg: diagonal block missing from the pattern");
     }
-    val.assign(kBlock * xoff.size(), T(0));
+    xoff.assign(blocks, 0);
+    val.assign(kBlock * blocks, T(0));
   }
 
-  // Copies the values of A (same pattern) in; one streaming pass. Blocks are stored
-  // column-major with each column padded to 4 lanes, so that y += B x is three 4-wide
-  // multiply-adds of a column by a broadcast x entry.
+  // Copies the values of A in, one streaming pass, leaving out the blocks that are exactly
+  // zero: the pattern holds a dense row and column per proxy (a fingertip may touch any
+  // vertex) of which a step uses the few blocks in contact, and the product below then costs
+  // what the cloth alone costs. Blocks are stored column-major with each column padded to 4
+  // lanes, so that y += B x is three 4-wide multiply-adds of a column by a broadcast x entry.
   void load(const SymCsr& A) {
     const int nb = static_cast<int>(diag.size());
     const double* v = A.val.data();
     T* dst = val.data();
+    int stored = 0;
     for (int br = 0; br < nb; ++br) {
+      rowptr[br] = stored;
       const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
       const double* r0 = v + o;
       const double* r1 = r0 + len;
       const double* r2 = r1 + len;
-      for (int k = 0; k < len; k += 3, dst += kBlock) {
+      for (int k = 0; k < len; k += 3) {
+        bool zero = true;
+        for (int c = 0; c < 3; ++c) zero = zero && r0[k + c] == 0.0 && r1[k + c] == 0.0 && r2[k + c] == 0.0;
+        if (zero && k != diag[br]) continue;
         for (int c = 0; c < 3; ++c) {
           dst[4 * c] = T(r0[k + c]);
           dst[4 * c + 1] = T(r1[k + c]);
           dst[4 * c + 2] = T(r2[k + c]);
           dst[4 * c + 3] = T(0);
         }
+        xoff[stored++] = A.col[o + k];
+        dst += kBlock;
       }
     }
+    rowptr[nb] = stored;
   }
 
   // y = A x, and returns x . y (the PCG step needs p . Ap; fused to save a pass). y must have
@@ -167,6 +178,18 @@ class PcgSolver final : public LinearSolver {
       mf_.build_pattern(A);
     else
       md_.build_pattern(A);
+    // Hub rows: block rows far longer than a mesh's (the fingertip proxies, coupled to every
+    // vertex), found as CHOLMOD's ordering finds them.
+    const int nb = n_ / 3;
+    const double dense = std::max(16.0, 10.0 * std::sqrt(static_cast<double>(n_)));
+    hubs_.clear();
+    for (int br = 0; br < nb && opt_.hub_block; ++br)
+      if (A.rowptr[3 * br + 1] - A.rowptr[3 * br] > dense) hubs_.push_back(br);
+    local_.assign(nb, -1);
+    cluster_.clear();
+    cluster_.reserve(kMaxCluster);
+    weight_.clear();
+    weight_.reserve(nb);
   }
 
   SolveStatus solve(const SymCsr& A, const double* b, double* x) override {
@@ -185,7 +208,7 @@ class PcgSolver final : public LinearSolver {
     const double* v = A.val.data();
     for (int br = 0; br < nb; ++br) {
       const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
-      const int d = 3 * (M.diag[br] - M.rowptr[br]);  // column position of the diagonal block
+      const int d = M.diag[br];  // column position of the diagonal block
       const double* r0 = v + o + d;
       const double a00 = r0[0], a01 = r0[1], a02 = r0[2];
       const double a10 = r0[len], a11 = r0[len + 1], a12 = r0[len + 2];
@@ -205,6 +228,7 @@ class PcgSolver final : public LinearSolver {
       m[7] = (a01 * a20 - a00 * a21) * id;
       m[8] = (a00 * a11 - a01 * a10) * id;
     }
+    if (!hubs_.empty() && !factor_cluster(M, A)) return SolveStatus::NotPositiveDefinite;
     double bn2 = 0.0;
     for (int i = 0; i < n; ++i) bn2 += b[i] * b[i];
     if (!std::isfinite(bn2)) return SolveStatus::NumericalError;
@@ -228,7 +252,21 @@ class PcgSolver final : public LinearSolver {
     auto precondition = [&](double& rr) {
       double rz = 0.0;
       rr = 0.0;
+      if (!cluster_.empty()) {  // the hubs and what they touch: one dense block
+        const int m = 3 * static_cast<int>(cluster_.size());
+        for (size_t a = 0; a < cluster_.size(); ++a)
+          for (int c = 0; c < 3; ++c) cz_[3 * a + c] = r[3 * cluster_[a] + c];
+        cholesky_solve(dense_.data(), m, cz_.data());
+        for (size_t a = 0; a < cluster_.size(); ++a)
+          for (int c = 0; c < 3; ++c) {
+            const int i = 3 * cluster_[a] + c;
+            z[i] = cz_[3 * a + c];
+            rz += r[i] * z[i];
+            rr += r[i] * r[i];
+          }
+      }
       for (int br = 0; br < nb; ++br) {
+        if (local_[br] >= 0) continue;
         const double* m = inv_.data() + 9 * br;
         const double r0 = r[3 * br], r1 = r[3 * br + 1], r2 = r[3 * br + 2];
         const double z0 = m[0] * r0 + m[1] * r1 + m[2] * r2;
@@ -271,6 +309,83 @@ class PcgSolver final : public LinearSolver {
     residual_ = std::sqrt(rr) / bnorm;
     return SolveStatus::NotConverged;
   }
+
+  // The preconditioner's dense block: the hub rows (proxies) with the nodes their non-zero
+  // blocks reach (the vertices in contact), at most kMaxCluster nodes, strongest coupling
+  // first. Block-Jacobi alone leaves a vertex's stiff contact to its proxy to the iterations:
+  // on the pinched 968-triangle square that doubled them. Returns false if the block is not
+  // positive definite.
+  template <class T>
+  bool factor_cluster(const Bsr<T>& M, const SymCsr& A) {
+    for (int node : cluster_) local_[node] = -1;
+    cluster_.clear();
+    weight_.clear();
+    for (int hub : hubs_)
+      for (int k = M.rowptr[hub]; k < M.rowptr[hub + 1]; ++k) {
+        const int node = M.xoff[k] / 3;
+        const T* blk = M.val.data() + Bsr<T>::kBlock * k;
+        const double w = std::abs(double(blk[0])) + std::abs(double(blk[5])) + std::abs(double(blk[10]));
+        if (node != hub) weight_.push_back({-w, node});
+      }
+    for (int hub : hubs_) weight_.push_back({-std::numeric_limits<double>::infinity(), hub});
+    std::sort(weight_.begin(), weight_.end());
+    for (const auto& [w, node] : weight_) {
+      if (static_cast<int>(cluster_.size()) == kMaxCluster) break;
+      if (local_[node] >= 0) continue;
+      local_[node] = static_cast<int>(cluster_.size());
+      cluster_.push_back(node);
+    }
+    const int m = 3 * static_cast<int>(cluster_.size());
+    std::fill(dense_.begin(), dense_.begin() + m * m, 0.0);
+    for (int a : cluster_) {
+      const int o = A.rowptr[3 * a], len = A.rowptr[3 * a + 1] - o;
+      for (int k = 0; k < len; k += 3) {
+        const int b = local_[A.col[o + k] / 3];
+        if (b < 0) continue;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) dense_[(3 * local_[a] + r) * m + 3 * b + c] = A.val[o + r * len + k + c];
+      }
+    }
+    return cholesky(dense_.data(), m);
+  }
+
+  // In-place Cholesky A = L L^T of an m x m row-major matrix (lower triangle used). False if
+  // it is not positive definite.
+  static bool cholesky(double* a, int m) {
+    for (int j = 0; j < m; ++j) {
+      double d = a[j * m + j];
+      for (int k = 0; k < j; ++k) d -= a[j * m + k] * a[j * m + k];
+      if (!(d > 0.0) || !std::isfinite(d)) return false;
+      const double l = std::sqrt(d);
+      a[j * m + j] = l;
+      for (int i = j + 1; i < m; ++i) {
+        double v = a[i * m + j];
+        for (int k = 0; k < j; ++k) v -= a[i * m + k] * a[j * m + k];
+        a[i * m + j] = v / l;
+      }
+    }
+    return true;
+  }
+
+  // y = (L L^T)^-1 y with the factor from cholesky().
+  static void cholesky_solve(const double* l, int m, double* y) {
+    for (int i = 0; i < m; ++i) {
+      double v = y[i];
+      for (int k = 0; k < i; ++k) v -= l[i * m + k] * y[k];
+      y[i] = v / l[i * m + i];
+    }
+    for (int i = m - 1; i >= 0; --i) {
+      double v = y[i];
+      for (int k = i + 1; k < m; ++k) v -= l[k * m + i] * y[k];
+      y[i] = v / l[i * m + i];
+    }
+  }
+
+  static constexpr int kMaxCluster = 24;
+  std::vector<int> hubs_, local_, cluster_;
+  std::vector<std::pair<double, int>> weight_;
+  std::array<double, 9 * kMaxCluster * kMaxCluster> dense_{};
+  std::array<double, 3 * kMaxCluster> cz_{};
 
   PcgOptions opt_;
   int n_ = 0;

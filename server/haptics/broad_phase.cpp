@@ -6,13 +6,13 @@
 
 #include <fcl/geometry/bvh/BVH_model.h>
 #include <fcl/geometry/shape/sphere.h>
-#include <fcl/math/bv/kDOP.h>
+#include <fcl/math/bv/AABB.h>
 #include <fcl/narrowphase/collision.h>
 #include <fcl/narrowphase/collision_object.h>
 
 namespace hapticloth::haptics {
 
-using BV = fcl::KDOP<double, 18>;
+using BV = fcl::AABBd;
 
 struct BroadPhase::Impl {
   std::shared_ptr<fcl::BVHModel<BV>> model;

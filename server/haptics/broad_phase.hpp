@@ -1,6 +1,8 @@
-// Collision broad phase over the deforming cloth: an FCL bounding-volume hierarchy (k-DOP 18,
-// refit bottom-up each simulation step; see notes on FCL's OBBRSS refit) queried with each
-// fingertip's sphere grown by a margin that covers its motion until the next query.
+// Collision broad phase over the deforming cloth: an FCL bounding-volume hierarchy (AABB,
+// refit bottom-up once a vertex has moved `refit_slack`; FCL's bottom-up refit is wrong for
+// OBBRSS, right for AABB and k-DOP, and AABB's is the cheapest: 65 us for 968 triangles
+// against about 90 us for k-DOP 18) queried with each fingertip's sphere grown by the
+// displacement since the refit.
 #pragma once
 
 #include <array>
@@ -16,7 +18,7 @@ class BroadPhase {
  public:
   /// `refit_slack`: largest vertex displacement (m) before update() refits the hierarchy.
   BroadPhase(const std::vector<Eigen::Vector3d>& x, const std::vector<std::array<int, 3>>& tris,
-             double refit_slack = 0.003);
+             double refit_slack = 0.01);
   ~BroadPhase();
   /// Refit the hierarchy to new vertex positions (same count).
   void refit(const std::vector<Eigen::Vector3d>& x);
@@ -26,6 +28,8 @@ class BroadPhase {
   /// Triangles whose bounding volumes overlap the sphere (grown by the displacement since the
   /// last refit); at most `max_out`, sorted, unique. Returns the count written to `out`.
   int query_sphere(const Eigen::Vector3d& centre, double radius, int* out, int max_out);
+  /// Largest vertex displacement since the last refit, m (what queries grow by).
+  double displacement() const { return disp_; }
   int triangles() const { return triangles_; }
   std::uint64_t refits() const { return refits_; }
 

@@ -58,7 +58,7 @@ FingertipContact::FingertipContact(const cloth::ClothModel& model,
 // The samples of triangle t (positions x) whose centroid can lie within R of c, in ascending
 // order. Sample k is the centroid of sub-triangle k of an m x m subdivision: m(m+1)/2 upright
 // ones (rows i, columns j, i + j <= m - 1, centroid at b1 = (i + 1/3) / m, b2 = (j + 1/3) / m),
-// then m(m-1)/2 inverted ones (offset 2/3), row by row. the sphere's reach projected on the triangle's plane is an ellipse in barycentric
+// then m(m-1)/2 inverted ones (offset 2/3), row by row. The sphere's reach projected on the triangle's plane is an ellipse in barycentric
 // coordinates (b - b*)^T G (b - b*) <= R^2 - h^2 (G the Gram matrix of the edges, b* the foot
 // of c, h its height); its bounding box picks the rows and columns of the sub-triangle grid.
 // A triangle the size of the fingertip or smaller is enumerated whole.
@@ -107,13 +107,34 @@ Vec3 FingertipContact::point(const std::vector<Vec3>& x, int tri, const double b
   return b[0] * x[t[0]] + b[1] * x[t[1]] + b[2] * x[t[2]];
 }
 
+// The candidates of the last query (made with centre c, reach r + e beyond the sphere's
+// centre, broad-phase displacement d then) hold every triangle that can come within r + m of
+// a new centre c' while m + |c' - c| + (d' - d) <= e and the hierarchy was not refitted since:
+// a triangle point moved at most d' from where the hierarchy has it, and the query was grown
+// by d. So the broad phase is asked again only when a fingertip has moved through its margin.
+bool FingertipContact::covers(const Finger& F, const Vec3& centre, double motion) const {
+  return F.query_extra >= 0.0 && F.query_refits == bp_.refits() &&
+         motion + (centre - F.query_at).norm() + (bp_.displacement() - F.query_disp) <= F.query_extra;
+}
+
+void FingertipContact::ensure_candidates(int f, const Vec3& centre, double motion) {
+  Finger& F = fing_[f];
+  if (covers(F, centre, motion)) return;
+  F.query_at = centre;
+  F.query_extra = p_.margin + motion;
+  F.query_disp = bp_.displacement();
+  F.query_refits = bp_.refits();
+  F.ncand = bp_.query_sphere(centre, p_.radius + F.query_extra, F.cand.data(),
+                             static_cast<int>(F.cand.size()));
+  ++queries_;
+}
+
 void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec3& proxy_at) {
   Finger& F = fing_[f];
   F.prev.swap(F.now);
   F.now.clear();
   const Vec3& p = integ_.proxies()[f].x;
-  const double reach = p_.radius + p_.margin + (proxy_at - p).norm();
-  F.ncand = bp_.query_sphere(p, reach, F.cand.data(), static_cast<int>(F.cand.size()));
+  ensure_candidates(f, p, (proxy_at - p).norm() + h_ * vmax_);
   size_t j = 0;  // walks the last step's contacts (both lists ascend by sample id)
   for (int c = 0; c < F.ncand; ++c) {
     const int t = F.cand[c];
@@ -203,10 +224,13 @@ double FingertipContact::revise_friction(Sample& q, const Vec3& p0, const Vec3& 
   // the sphere, the contact sticks (the stick spring starting from the sliding force), so
   // the direction does not flip from step to step.
   const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
-  if ((Pt * rel_step).dot(q.slide) > 0.0) {
+  const Vec3 slip = Pt * rel_step;
+  if (slip.dot(q.slide) > 0.0) {
     q.sliding = false;
     q.anchor = q.x0 - p0 + Pt * q.slide / k;
-    return std::numeric_limits<double>::infinity();
+    // Sticking, the contact would resist this step's slip with k |slip| more, and its force
+    // stays in the cone: the change is at most the cone's width.
+    return std::min(k * slip.norm(), 2.0 * lim + tol);
   }
   const double sn = q.slide.norm();
   if (std::abs(sn - lim) <= tol) return 0.0;
@@ -229,6 +253,9 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
   h_ = h;
   s0_ = &s;
   bp_.update(s.x);
+  double v2 = 0.0;
+  for (const Vec3& v : s.v) v2 = std::max(v2, v.squaredNorm());
+  vmax_ = std::sqrt(v2);
   for (int f = 0; f < fingers_; ++f) {
     cloth::ProxyNode& P = integ_.proxies()[f];
     P.stiffness = p_.coupling_stiffness;
@@ -240,6 +267,7 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
       fing_[f].prev.clear();
       fing_[f].now.clear();
       fing_[f].ncand = 0;
+      fing_[f].query_extra = -1.0;
       continue;
     }
     if (!seen_[f]) {  // the first sample: the proxy starts at the fingertip
@@ -255,68 +283,84 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
   rebuild_springs();
 }
 
+// Samples of the candidate triangles that would end more than kAddDepth inside the sphere
+// (centre p0 at the start of the step, p1 at its end) join the contacts, in id order.
+// Returns true if any did.
+bool FingertipContact::add_contacts(int f, const std::vector<Vec3>& x_new, const Vec3& p0,
+                                    const Vec3& p1) {
+  Finger& F = fing_[f];
+  size_t j = 0;
+  const size_t nold = F.now.size();
+  for (int c = 0; c < F.ncand; ++c) {
+    const int t = F.cand[c];
+    const int ns = sub_[t] * sub_[t];
+    for_samples_near(t, x_new, p1, p_.radius, [&](int k, const double* b) {
+      const int id = first_[t] + k;
+      while (j < nold && F.now[j].id < id) ++j;
+      if (j < nold && F.now[j].id == id) return;
+      Sample q;
+      for (int i = 0; i < 3; ++i) q.b[i] = b[i];
+      const Vec3 x1 = point(x_new, t, q.b);
+      if (p_.radius - (x1 - p1).norm() <= kAddDepth) return;
+      const Vec3 x = point(s0_->x, t, q.b);
+      const double d = (x - p0).norm();
+      if (d < 1e-12) return;
+      q.id = id;
+      q.tri = t;
+      q.w = model_.elements[t].area / ns;
+      q.n = (x - p0) / d;
+      q.depth0 = p_.radius - d;
+      q.x0 = x;
+      q.anchor = x - p0;
+      decide_friction(f, q);
+      F.now.push_back(q);
+    });
+  }
+  if (F.now.size() == nold) return false;
+  std::inplace_merge(F.now.begin(), F.now.begin() + nold, F.now.end(),
+                     [](const Sample& a, const Sample& b) { return a.id < b.id; });
+  return true;
+}
+
 bool FingertipContact::revise(const std::vector<Vec3>& x_new,
                               const std::vector<cloth::ProxyNode>& proxies,
                               std::vector<cloth::PointSpring>&) {
   bool changed = false;
   for (int f = 0; f < fingers_; ++f) {
+    if (!valid_[f]) continue;
     Finger& F = fing_[f];
-    if (F.ncand == 0 && F.now.empty()) continue;
     const Vec3& p0 = proxies[f].x;
     const Vec3 dp = proxies[f].displacement;
     const Vec3 p1 = p0 + dp;
-    // Contacts that would pull at the end of the step are released.
-    const size_t before = F.now.size();
-    F.now.erase(std::remove_if(F.now.begin(), F.now.end(),
-                               [&](const Sample& q) {
-                                 const Vec3 rel = point(x_new, q.tri, q.b) - q.x0 - dp;
-                                 return q.depth0 - q.n.dot(rel) < -kPullDepth;
-                               }),
-                F.now.end());
-    changed = changed || F.now.size() != before;
-    // Points that would end inside the sphere become contacts.
-    size_t j = 0;
-    const size_t nold = F.now.size();
-    for (int c = 0; c < F.ncand; ++c) {
-      const int t = F.cand[c];
-      const int ns = sub_[t] * sub_[t];
-      for_samples_near(t, x_new, p1, p_.radius, [&](int k, const double* b) {
-        const int id = first_[t] + k;
-        while (j < nold && F.now[j].id < id) ++j;
-        if (j < nold && F.now[j].id == id) return;
-        Sample q;
-        for (int i = 0; i < 3; ++i) q.b[i] = b[i];
-        const Vec3 x1 = point(x_new, t, q.b);
-        if (p_.radius - (x1 - p1).norm() <= kAddDepth) return;
-        const Vec3 x = point(s0_->x, t, q.b);
-        const double d = (x - p0).norm();
-        if (d < 1e-12) return;
-        q.id = id;
-        q.tri = t;
-        q.w = model_.elements[t].area / ns;
-        q.n = (x - p0) / d;
-        q.depth0 = p_.radius - d;
-        q.x0 = x;
-        q.anchor = x - p0;
-        decide_friction(f, q);
-        F.now.push_back(q);
-        changed = true;
-      });
-    }
-    if (F.now.size() > nold)
-      std::inplace_merge(F.now.begin(), F.now.begin() + nold, F.now.end(),
-                         [](const Sample& a, const Sample& b) { return a.id < b.id; });
-    // Coulomb's law on the solved step; corrections smaller than 0.2% of the finger's normal
-    // force are kept for the next step rather than solved again.
-    double fchange = 0.0, fscale = 0.0;
+    ensure_candidates(f, p0, dp.norm() + h_ * vmax_);  // the solved step may reach further than foreseen
+    if (F.ncand == 0 && F.now.empty()) continue;
+    // Contacts that would pull at the end of the step are released; points that would end
+    // inside the sphere become contacts; Coulomb's law is checked on the solved step. The step
+    // is solved again for every new contact, and for released contacts and friction
+    // corrections once their forces add up to 0.2% of the finger's normal force (smaller ones
+    // are applied from the next step on: the contact set and friction state move with them).
+    double pulled = 0.0, fchange = 0.0, fscale = 0.0;
     for (Sample& q : F.now) {
-      fchange += revise_friction(q, p0, point(x_new, q.tri, q.b) - q.x0 - dp);
-      fscale += p_.pressure_stiffness * q.w * std::max(q.depth0, 0.0);
+      const double k = p_.pressure_stiffness * q.w;
+      const Vec3 rel = point(x_new, q.tri, q.b) - q.x0 - dp;
+      const double depth1 = q.depth0 - q.n.dot(rel);
+      fscale += k * std::max(q.depth0, 0.0);
+      q.release = depth1 < -kPullDepth;
+      if (q.release)
+        pulled += -k * depth1;
+      else
+        fchange += revise_friction(q, p0, rel);
     }
-    changed = changed || fchange > 2e-3 * fscale + 1e-6;
+    const bool added = add_contacts(f, x_new, p0, p1);
+    changed = changed || added || pulled + fchange > 2e-3 * fscale + 1e-6;
   }
-  if (changed) rebuild_springs();
-  return changed;
+  if (!changed) return false;
+  for (int f = 0; f < fingers_; ++f) {
+    auto& now = fing_[f].now;
+    now.erase(std::remove_if(now.begin(), now.end(), [](const Sample& q) { return q.release; }), now.end());
+  }
+  rebuild_springs();
+  return true;
 }
 
 double FingertipContact::exact_penetration(int f, const std::vector<Vec3>& x, const Vec3& c) const {

@@ -65,6 +65,8 @@ class FingertipContact final : public cloth::StepContacts {
   /// Largest depth of any cloth point (vertex, edge or face) inside a fingertip sphere, m.
   double max_penetration() const { return max_pen_; }
   std::uint64_t active_samples() const { return samples_in_contact_; }
+  /// Broad-phase queries made (the candidates of one serve while they provably cover the reach).
+  std::uint64_t queries() const { return queries_; }
 
  private:
   struct Sample {  // one contact: a sample point against one fingertip
@@ -81,15 +83,24 @@ class FingertipContact final : public cloth::StepContacts {
     // This step's friction: sliding with force `slide` (N, on the cloth), or sticking.
     bool sliding = false;
     Vec3 slide = Vec3::Zero();
+    bool release = false;  // would pull at the end of the solved step
   };
   struct Finger {
     std::vector<Sample> now, prev;  // this step's contacts (sorted by id), last step's
     std::vector<int> cand;          // candidate triangles (sized to the mesh: never overflows)
     int ncand = 0;
+    // The query the candidates came from: its centre, its reach beyond the sphere, the broad
+    // phase's displacement and refit count then (see covers()).
+    Vec3 query_at = Vec3::Zero();
+    double query_extra = -1.0, query_disp = 0.0;
+    std::uint64_t query_refits = 0;
   };
+  bool covers(const Finger& F, const Vec3& centre, double motion) const;
+  void ensure_candidates(int f, const Vec3& centre, double motion);
   void find_samples(int f, const cloth::ClothState& s, const Vec3& proxy_at);
   void make_spring(int f, const Sample& q, cloth::PointSpring& sp) const;
   void decide_friction(int f, Sample& q) const;
+  bool add_contacts(int f, const std::vector<Vec3>& x_new, const Vec3& p0, const Vec3& p1);
   double revise_friction(Sample& q, const Vec3& p0, const Vec3& rel_step) const;
   template <class Fn>
   void for_samples_near(int t, const std::vector<Vec3>& x, const Vec3& c, double R, Fn&& fn) const;
@@ -112,8 +123,10 @@ class FingertipContact final : public cloth::StepContacts {
   std::array<bool, kMaxFingers> seen_{}, valid_{};  // a device sample ever / this step
   const cloth::ClothState* s0_ = nullptr;          // the state the step started from
   double h_ = 1e-3;
+  double vmax_ = 0.0;  // fastest vertex at the start of the step, m/s
   double max_pen_ = 0.0;
   std::uint64_t samples_in_contact_ = 0;
+  std::uint64_t queries_ = 0;
 };
 
 }  // namespace hapticloth::haptics

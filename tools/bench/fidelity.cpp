@@ -126,10 +126,20 @@ json pinch_step(const app::Scene& scene, double seconds) {
   }
   test::TouchRig rig(cloth::ClothModel(model), std::move(tr), sc, ic, cloth::rest_state(model), scene.solver);
   long both = 0, ticks = 0;
-  rig.session->run_stepped(seconds, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
+  // Where a step's time goes: the solver's iterations (summed over the re-solves) and the
+  // integrator's share of the step (the rest is the contact's sampling and FCL).
+  haptics::Histogram iterations, integrator_us;
+  std::uint64_t solves = 0, steps = 0;
+  rig.session->run_stepped(seconds, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker& w) {
     ++ticks;
     both += h.last_report().finger[0].in_contact && h.last_report().finger[1].in_contact;
+    if (w.steps() == steps) return;
+    steps = w.steps();
+    const cloth::StepTiming& t = w.integrator().last_timing();
+    iterations.add(t.iterations);
+    integrator_us.add(1e3 * t.total_ms);
   });
+  solves = steps + rig.session->report().contact_revisions;
   const haptics::SessionReport rep = rig.session->report();
   const auto& st = rep.sim_step_us;
   return {{"benchmark", "step-pinch"},
@@ -139,6 +149,9 @@ json pinch_step(const app::Scene& scene, double seconds) {
           {"both_fingers_in_contact", static_cast<double>(both) / std::max(1L, ticks)},
           {"sim_step_us", {{"p50", st.quantile(0.5)}, {"p99", st.quantile(0.99)}, {"max", st.max()}}},
           {"tick_compute_us", {{"p50", rep.haptic.compute_us.quantile(0.5)}, {"p99", rep.haptic.compute_us.quantile(0.99)}}},
+          {"integrator_us", {{"p50", integrator_us.quantile(0.5)}, {"p99", integrator_us.quantile(0.99)}}},
+          {"solver_iterations_per_step", {{"mean", iterations.mean()}, {"p99", iterations.quantile(0.99)}, {"max", iterations.max()}}},
+          {"solves_per_step", static_cast<double>(solves) / std::max<std::uint64_t>(1, steps)},
           {"contact_revisions", rep.contact_revisions},
           {"max_penetration_mm", rep.max_penetration * 1e3}};
 }
