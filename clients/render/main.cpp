@@ -15,7 +15,7 @@
 #include <sstream>
 #include <tuple>
 
-#include <CLI/CLI.hpp>
+#include "cli_checks.hpp"
 
 #include "render/recording.hpp"
 #include "render/renderer.hpp"
@@ -98,50 +98,56 @@ int main(int argc, char** argv) {
   auto* o_zen = cli.add_option("--zenoh", endpoint, "live: connect to the server's zenoh endpoint (e.g. tcp/127.0.0.1:7447)");
   o_log->excludes(o_zen);
   cli.add_option("--server", server, "live: server name, key expressions hapticloth/<name>/... (default: default)");
-  cli.add_option("--timeout", timeout, "live: seconds to wait for the scene and the first cloth state (default 5)");
-  cli.add_option("--duration", duration, "live: seconds to collect for --frames/--mp4 (default 10; ends early when the stream stops)");
-  cli.add_option("--snapshot", snapshot, "write one frame to this PNG");
-  cli.add_option("--time", time, "snapshot: the frame nearest this session time, s (default: the last; live: the first at or after it)");
+  cli.add_option("--timeout", timeout, "live: seconds to wait for the scene and the first cloth state (default 5)")
+      ->check(hapticloth::opts::positive(3600.0, "s"));
+  cli.add_option("--duration", duration, "live: seconds to collect for --frames/--mp4 (default 10; ends early when the stream stops)")
+      ->check(hapticloth::opts::positive(1e6, "s"));
+  cli.add_option("--snapshot", snapshot, "write one frame to this PNG")->check(hapticloth::opts::writable_file());
+  cli.add_option("--time", time, "snapshot: the frame nearest this session time, s (default: the last; live: the first at or after it)")
+      ->check(hapticloth::opts::number_in(0.0, 1e9, false, "s"));
   cli.add_option("--frames", frames_dir, "write a PNG sequence frame_00000.png, ... into this directory");
-  cli.add_option("--fps", fps, "frames per second of session time for --frames/--mp4 (default 30)")->check(CLI::Range(0.1, 1000.0));
-  cli.add_option("--start", start, "first session time of --frames/--mp4, s (default: the first state)");
-  cli.add_option("--end", end, "last session time of --frames/--mp4, s (default: the last state)");
-  cli.add_option("--mp4", mp4, "encode the frames into this MP4 with ffmpeg (skipped with a message if ffmpeg is missing)");
+  cli.add_option("--fps", fps, "frames per second of session time for --frames/--mp4 (default 30)")->check(hapticloth::opts::number_in(0.1, 1000.0));
+  cli.add_option("--start", start, "first session time of --frames/--mp4, s (default: the first state)")
+      ->check(hapticloth::opts::number_in(0.0, 1e9, false, "s"));
+  cli.add_option("--end", end, "last session time of --frames/--mp4, s (default: the last state)")
+      ->check(hapticloth::opts::number_in(0.0, 1e9, false, "s"));
+  cli.add_option("--mp4", mp4, "encode the frames into this MP4 with ffmpeg (skipped with a message if ffmpeg is missing)")
+      ->check(hapticloth::opts::writable_file());
   cli.add_option("--color", color, "weave (texture) | weft | warp | shear (eq. 4 strain per triangle)")
       ->check(CLI::IsMember({"weave", "weft", "warp", "shear"}));
-  cli.add_option("--strain-range", strain_range, "strain at the ends of the colour bar, e.g. 0.02 = 2% (default: from the frames drawn)");
-  cli.add_option("--weave-pitch", style.weave_pitch, "m of cloth per repeat of the weave texture, 4 threads (default 0.02)");
+  cli.add_option("--strain-range", strain_range, "strain at the ends of the colour bar, e.g. 0.02 = 2% (default: from the frames drawn)")
+      ->check(hapticloth::opts::positive(10.0));
+  cli.add_option("--weave-pitch", style.weave_pitch, "m of cloth per repeat of the weave texture, 4 threads (default 0.02)")
+      ->check(hapticloth::opts::positive(10.0, "m"));
   cli.add_option("--eye", eye_s, "camera position X,Y,Z (m, scene frame; default: framed from the mesh's bounding box)");
   cli.add_option("--target", target_s, "point looked at X,Y,Z (default: the bounding box centre)");
   cli.add_option("--up", up_s, "camera up direction X,Y,Z (default 0,0,1)");
-  cli.add_option("--fov", fov, "vertical field of view, degrees (default 35)")->check(CLI::Range(1.0, 170.0));
+  cli.add_option("--fov", fov, "vertical field of view, degrees (default 35)")->check(hapticloth::opts::number_in(1.0, 170.0, false, "degrees"));
   cli.add_option("--size", size, "picture size WxH in pixels (default 1280x720)");
   cli.add_option("--supersample", supersample, "draw at N times the size and average down (default 2)")->check(CLI::Range(1, 4));
-  cli.add_option("--finger-radius", style.finger_radius, "fingertip sphere radius, m (default 0.008)");
-  cli.add_option("--force-scale", style.force_scale, "force arrow length per newton, m/N (default 0.02; 0: no arrows)");
+  cli.add_option("--finger-radius", style.finger_radius, "fingertip sphere radius, m (default 0.008)")
+      ->check(hapticloth::opts::positive(1.0, "m"));
+  cli.add_option("--force-scale", style.force_scale, "force arrow length per newton, m/N (default 0.02; 0: no arrows)")
+      ->check(hapticloth::opts::number_in(0.0, 10.0, false, "m/N"));
   cli.add_flag("--no-fingers", no_fingers, "do not draw the fingertips");
   cli.add_flag("--no-colorbar", no_colorbar, "do not draw the colour bar");
   cli.add_flag("--no-label", no_label, "do not write time and forces on the picture");
-  try {
-    cli.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return cli.exit(e) == 0 ? 0 : 1;  // --help: 0; any option error: 1
-  }
+  if (const int rc = hapticloth::opts::parse(cli, argc, argv); rc >= 0) return rc;
 
   const std::string me = "hapticloth-render: ";
   if (log.empty() && endpoint.empty()) {
     std::cerr << me << "give --log FILE or --zenoh ENDPOINT\n";
-    return 1;
+    return 2;
   }
   if (snapshot.empty() && frames_dir.empty() && mp4.empty()) {
     std::cerr << me << "nothing to write: give --snapshot, --frames or --mp4\n";
-    return 1;
+    return 2;
   }
   int width = 0, height = 0;
   char xc = 0, extra = 0;
   if (std::sscanf(size.c_str(), "%d%c%d%c", &width, &xc, &height, &extra) != 3 || xc != 'x') {
     std::cerr << me << "--size must be WxH, e.g. 1280x720\n";
-    return 1;
+    return 2;
   }
   std::optional<Eigen::Vector3d> eye, target, up;
   for (auto [s, v, name] : {std::tuple{&eye_s, &eye, "--eye"}, {&target_s, &target, "--target"}, {&up_s, &up, "--up"}}) {
@@ -149,7 +155,7 @@ int main(int argc, char** argv) {
     *v = parse_vec(*s);
     if (!*v) {
       std::cerr << me << name << " must be X,Y,Z\n";
-      return 1;
+      return 2;
     }
   }
   parse_color_mode(color, style.color);
@@ -203,7 +209,7 @@ int main(int argc, char** argv) {
     for (long k = 0; t0 + k / fps <= t1 + 1e-9; ++k) seq.push_back(rec.frame_near(t0 + k / fps));
     if (seq.empty()) {
       std::cerr << me << "--start " << t0 << " is after --end " << t1 << "\n";
-      return 1;
+      return 2;
     }
   }
   const StrainComponent comp = style.color == ColorMode::Warp ? StrainComponent::Warp

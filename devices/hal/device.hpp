@@ -87,6 +87,8 @@ struct DeviceCounters {
   std::uint64_t dropped_reordered = 0;   ///< older than the newest sample already taken
   std::uint64_t dropped_out_of_range = 0;  ///< non-finite or outside the workspace
   std::uint64_t send_errors = 0;
+  std::uint64_t record_rows = 0;     ///< device-log rows written (--record; set at deactivate)
+  std::uint64_t record_dropped = 0;  ///< device-log rows lost to a full buffer (--record)
   std::uint64_t dropped_total() const {
     return dropped_malformed + dropped_version + dropped_duplicate + dropped_reordered +
            dropped_out_of_range;

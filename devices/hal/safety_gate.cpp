@@ -41,7 +41,7 @@ void SafetyGate::apply(double now, double state_time, const DeviceCommand& in,
   last_now_ = now;
 
   // Watchdog.
-  const bool stale = !(state_time >= 0.0) || !std::isfinite(now) || now - state_time > watchdog_;
+  const bool stale = !fresh(now, state_time);
   if (stale && !stale_) ++c_.stale_events;
   stale_ = stale;
   if (stale) ++c_.stale_ticks;

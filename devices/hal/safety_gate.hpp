@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 
 #include "hal/device.hpp"
@@ -36,6 +37,11 @@ class SafetyGate {
   /// never). Writes the gated command to `out` (flags set: stale, clamped, fault).
   void apply(double now, double state_time, const DeviceCommand& in, DeviceCommand& out) noexcept;
 
+  /// True if a device state that arrived at loop time `state_time` (< 0: never) is fresh at
+  /// `now`: the watchdog's test, which apply() uses too.
+  bool fresh(double now, double state_time) const noexcept {
+    return state_time >= 0.0 && std::isfinite(now) && now - state_time <= watchdog_;
+  }
   bool stale() const { return stale_; }
   /// Fade factor in [0, 1] applied to the forces (0 while fully stale).
   double gain() const { return gain_; }

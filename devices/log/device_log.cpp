@@ -1,6 +1,14 @@
 #include "log/device_log.hpp"
 
+#include "log/spsc_ring.hpp"
+
+#include <cerrno>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <cstring>
+#include <mutex>
+#include <thread>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -10,19 +18,44 @@
 
 namespace hapticloth::devices {
 
-void DeviceLogRecorder::reserve(size_t rows) {
-  rows_.clear();
-  rows_.reserve(rows);
+struct DeviceLogWriter::Impl {
+  explicit Impl(std::size_t capacity) : ring(capacity) {}
+  SpscRing<LogRow> ring;
+  std::thread writer;
+  std::mutex m;
+  std::condition_variable wake;
+  bool stop = false;
+};
+
+namespace {
+// How often the writer drains the ring and flushes the file.
+constexpr auto kWriterPeriod = std::chrono::milliseconds(5);
+}  // namespace
+
+DeviceLogWriter::DeviceLogWriter(std::size_t capacity_rows)
+    : impl_(std::make_unique<Impl>(capacity_rows)) {}
+
+DeviceLogWriter::~DeviceLogWriter() { close(); }
+
+std::string DeviceLogWriter::open(const std::string& path) {
+  close();
+  file_ = std::fopen(path.c_str(), "w");
+  if (!file_) return path + ": cannot write the device log (" + std::strerror(errno) + ")";
+  path_ = path;
+  write_error_ = false;
+  written_ = 0;
   dropped_ = 0;
+  std::fprintf(file_, "time,finger,x,y,z,vx,vy,vz,buttons,fx,fy,fz\n");
+  std::fflush(file_);
+  impl_->stop = false;
+  impl_->writer = std::thread([this] { run(); });
+  return "";
 }
 
-void DeviceLogRecorder::record(double time, int fingers, const DeviceState& s,
-                               const DeviceCommand& c) noexcept {
+void DeviceLogWriter::record(double time, int fingers, const DeviceState& s,
+                             const DeviceCommand& c) noexcept {
+  if (!file_) return;
   for (int i = 0; i < fingers && i < kMaxFingers; ++i) {
-    if (rows_.size() == rows_.capacity()) {
-      ++dropped_;
-      continue;
-    }
     LogRow r;
     r.time = time;
     r.finger = i;
@@ -30,19 +63,44 @@ void DeviceLogRecorder::record(double time, int fingers, const DeviceState& s,
     r.v = s.finger[i].velocity;
     r.buttons = s.finger[i].buttons;
     r.f = c.force[i];
-    rows_.push_back(r);  // within capacity: no allocation
+    if (!impl_->ring.push(r)) dropped_.fetch_add(1, std::memory_order_relaxed);
   }
 }
 
-void DeviceLogRecorder::write_csv(const std::string& path) const {
-  std::FILE* f = std::fopen(path.c_str(), "w");
-  if (!f) throw std::runtime_error(path + ": cannot write the device log");
-  std::fprintf(f, "time,finger,x,y,z,vx,vy,vz,buttons,fx,fy,fz\n");
-  for (const auto& r : rows_)
-    std::fprintf(f, "%.9g,%d,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%u,%.9g,%.9g,%.9g\n", r.time, r.finger,
-                 r.x.x(), r.x.y(), r.x.z(), r.v.x(), r.v.y(), r.v.z(), r.buttons, r.f.x(), r.f.y(),
-                 r.f.z());
-  if (std::fclose(f) != 0) throw std::runtime_error(path + ": error while writing the device log");
+void DeviceLogWriter::drain() {
+  LogRow r;
+  std::uint64_t n = 0;
+  while (impl_->ring.pop(r)) {
+    if (std::fprintf(file_, "%.9g,%d,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%u,%.9g,%.9g,%.9g\n", r.time,
+                     r.finger, r.x.x(), r.x.y(), r.x.z(), r.v.x(), r.v.y(), r.v.z(), r.buttons,
+                     r.f.x(), r.f.y(), r.f.z()) < 0)
+      write_error_ = true;
+    ++n;
+  }
+  if (n > 0 && std::fflush(file_) != 0) write_error_ = true;
+  written_.fetch_add(n, std::memory_order_relaxed);
+}
+
+void DeviceLogWriter::run() {
+  std::unique_lock<std::mutex> lock(impl_->m);
+  while (!impl_->stop) {
+    impl_->wake.wait_for(lock, kWriterPeriod, [&] { return impl_->stop; });
+    drain();
+  }
+}
+
+std::string DeviceLogWriter::close() {
+  if (!file_) return "";
+  {
+    std::lock_guard<std::mutex> lock(impl_->m);
+    impl_->stop = true;
+  }
+  impl_->wake.notify_all();
+  impl_->writer.join();
+  drain();  // rows pushed after the writer's last pass
+  const bool ok = std::fclose(file_) == 0 && !write_error_;
+  file_ = nullptr;
+  return ok ? "" : path_ + ": error while writing the device log";
 }
 
 std::vector<std::string> split_csv(const std::string& line) {

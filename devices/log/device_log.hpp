@@ -1,9 +1,12 @@
 // The device log: what a device reported and what forces it was sent, one row per sample per
-// finger. Written by the mock and UDP drivers, read by the replay driver and by tests.
+// finger. Written (streamed) by the mock and UDP drivers, read by the replay driver and tests.
 // CSV header: time,finger,x,y,z,vx,vy,vz,buttons,fx,fy,fz (s, index, m, m/s, mask, N).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <cstdio>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -19,20 +22,40 @@ struct LogRow {
   Vec3 f = Vec3::Zero();
 };
 
-/// Fixed-capacity recorder: record() never allocates; rows past the capacity are counted.
-class DeviceLogRecorder {
+/// Streams the device log to a CSV file while the device runs: the real-time side hands rows
+/// to a fixed ring (never allocates, never blocks), a writer thread appends them to the file
+/// and flushes it every few milliseconds, so a record is complete to within that of any stop.
+/// A full ring drops rows, counted (dropped()).
+class DeviceLogWriter {
  public:
-  void reserve(size_t rows);
+  explicit DeviceLogWriter(std::size_t capacity_rows = 1u << 15);
+  ~DeviceLogWriter();
+  DeviceLogWriter(const DeviceLogWriter&) = delete;
+  DeviceLogWriter& operator=(const DeviceLogWriter&) = delete;
+
+  /// Creates (truncates) the file, writes the header and starts the writer. Returns "" or
+  /// "PATH: cannot write the device log (reason)".
+  std::string open(const std::string& path);
+  bool is_open() const { return file_ != nullptr; }
+  /// Real-time path: one row per finger.
   void record(double time, int fingers, const DeviceState& s, const DeviceCommand& c) noexcept;
-  std::uint64_t dropped() const { return dropped_; }
-  const std::vector<LogRow>& rows() const { return rows_; }
-  /// Throws std::runtime_error naming the path if it cannot be written.
-  void write_csv(const std::string& path) const;
-  void clear() { rows_.clear(); dropped_ = 0; }
+  /// Writes what is left, closes the file, stops the writer. Returns "" or the write error.
+  std::string close();
+
+  const std::string& path() const { return path_; }
+  std::uint64_t written() const { return written_.load(); }
+  std::uint64_t dropped() const { return dropped_.load(); }
 
  private:
-  std::vector<LogRow> rows_;
-  std::uint64_t dropped_ = 0;
+  void drain();
+  void run();
+
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::FILE* file_ = nullptr;
+  std::string path_;
+  bool write_error_ = false;
+  std::atomic<std::uint64_t> written_{0}, dropped_{0};
 };
 
 /// Reads a device log. Throws std::invalid_argument "PATH:LINE: message" on bad input (missing

@@ -23,20 +23,25 @@ std::string MockDevice::configure() {
   } catch (const std::exception& e) {
     return std::string("mock: ") + e.what();
   }
+  // The record is opened here, so that an unwritable path stops the server before it starts.
+  if (!opt_.record_path.empty())
+    if (std::string e = record_.open(opt_.record_path); !e.empty()) return "mock: record: " + e;
   return "";
 }
 
 std::string MockDevice::activate() {
   t0_ = -1.0;
   last_ = DeviceState{};
-  // Room for the whole script plus a minute, at the nominal rate (recording never allocates).
-  const double seconds = tr_.duration() + 60.0;
-  log_.reserve(opt_.record_path.empty() ? 0 : static_cast<size_t>(seconds * info_.nominal_rate) * info_.fingers);
+  if (!opt_.record_path.empty() && !record_.is_open())  // a new session after a deactivate
+    if (std::string e = record_.open(opt_.record_path); !e.empty()) return "mock: record: " + e;
   return "";
 }
 
 void MockDevice::deactivate() {
-  if (!opt_.record_path.empty()) log_.write_csv(opt_.record_path);
+  const std::string e = record_.close();
+  counters_.record_rows = record_.written();
+  counters_.record_dropped = record_.dropped();
+  if (!e.empty()) throw std::runtime_error("mock: record: " + e);
 }
 
 Status MockDevice::read(double now, DeviceState& state) noexcept {
@@ -56,7 +61,8 @@ Status MockDevice::read(double now, DeviceState& state) noexcept {
 
 Status MockDevice::write(double now, const DeviceCommand& cmd) noexcept {
   ++counters_.writes;
-  if (!opt_.record_path.empty()) log_.record(script_time(now), info_.fingers, last_, cmd);
+  record_.record(script_time(now), info_.fingers, last_, cmd);
+  counters_.record_dropped = record_.dropped();
   return Status::Ok;
 }
 

@@ -1,6 +1,6 @@
 // The mock two-finger device: fingertips follow a scripted trajectory on the loop clock (so it
 // runs in real time under the real-time loop and as fast as possible under a simulated clock),
-// and it records every force it receives.
+// and it records every force it receives (streamed to the device log, DeviceOptions::record_path).
 #pragma once
 
 #include <memory>
@@ -26,7 +26,8 @@ class MockDevice final : public Device {
   Status write(double now, const DeviceCommand& cmd) noexcept override;
   const DeviceCounters& counters() const override { return counters_; }
 
-  const DeviceLogRecorder& log() const { return log_; }
+  /// The streamed device log (--record): rows written, dropped.
+  const DeviceLogWriter& record() const { return record_; }
   const Trajectory& trajectory() const { return tr_; }
   /// Trajectory time of the loop time `now` (0 at the first read after activate).
   double script_time(double now) const { return t0_ < 0.0 ? 0.0 : now - t0_; }
@@ -39,7 +40,7 @@ class MockDevice final : public Device {
   double t0_ = -1.0;
   DeviceState last_;
   DeviceCounters counters_;
-  DeviceLogRecorder log_;
+  DeviceLogWriter record_;
 };
 
 std::unique_ptr<Device> make_mock_device(const DeviceOptions& opt);

@@ -99,7 +99,11 @@ void UdpDevice::close_socket() {
 
 std::string UdpDevice::configure() {
   try {
-    return open_socket();
+    if (std::string e = open_socket(); !e.empty()) return e;
+    // The record is opened here, so that an unwritable path stops the server before it starts.
+    if (!opt_.record_path.empty())
+      if (std::string e = record_.open(opt_.record_path); !e.empty()) return "udp: record: " + e;
+    return "";
   } catch (const std::exception& e) {  // std::string allocation only
     return std::string("udp: ") + e.what();
   }
@@ -109,11 +113,8 @@ std::string UdpDevice::activate() {
   try {
     const std::string err = open_socket();
     if (!err.empty()) return err;
-    const std::size_t rows =
-        opt_.record_path.empty()
-            ? 0
-            : static_cast<std::size_t>(kRecordSeconds * info_.nominal_rate) * info_.fingers;
-    log_.reserve(rows);
+    if (!opt_.record_path.empty() && !record_.is_open())  // a new session after a deactivate
+      if (std::string e = record_.open(opt_.record_path); !e.empty()) return "udp: record: " + e;
   } catch (const std::exception& e) {
     return std::string("udp: ") + e.what();
   }
@@ -129,7 +130,10 @@ void UdpDevice::deactivate() {
     send_force(state_.received_time, DeviceCommand{}, broken);  // zero forces, flags 0
   }
   close_socket();
-  if (!opt_.record_path.empty()) log_.write_csv(opt_.record_path);
+  const std::string e = record_.close();
+  counters_.record_rows = record_.written();
+  counters_.record_dropped = record_.dropped();
+  if (!e.empty()) throw std::runtime_error("udp: record: " + e);
 }
 
 void UdpDevice::take(const udp::StatePacket& p, const sockaddr_in& from) {
@@ -216,11 +220,12 @@ bool UdpDevice::send_force(double now, const DeviceCommand& cmd, bool& broken) n
     return false;
   }
   ++counters_.writes;
-  if (!recorded_newest_ && !opt_.record_path.empty()) {
+  if (!recorded_newest_ && record_.is_open()) {
     DeviceCommand sent;
     sent.flags = fp.flags;
     for (int f = 0; f < info_.fingers; ++f) sent.force[f] = fp.force[f];
-    log_.record(state_.received_time, info_.fingers, state_, sent);
+    record_.record(state_.received_time, info_.fingers, state_, sent);
+    counters_.record_dropped = record_.dropped();
   }
   recorded_newest_ = true;
   return true;

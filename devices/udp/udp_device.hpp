@@ -35,8 +35,6 @@ class UdpDevice final : public Device {
  public:
   /// Datagrams read per read() call at most (bounds the time read() takes under a flood).
   static constexpr int kMaxDatagramsPerRead = 256;
-  /// The device log keeps the first this many seconds at the nominal rate.
-  static constexpr double kRecordSeconds = 300.0;
 
   /// Throws std::invalid_argument naming the field for a bad udp_bind or finger count.
   explicit UdpDevice(const DeviceOptions& opt);
@@ -65,7 +63,8 @@ class UdpDevice final : public Device {
 
   /// The bound UDP port (after configure; useful with port 0).
   std::uint16_t local_port() const { return local_port_; }
-  const DeviceLogRecorder& log() const { return log_; }
+  /// The streamed device log (--record): rows written, dropped.
+  const DeviceLogWriter& record() const { return record_; }
 
  private:
   std::string open_socket();
@@ -89,7 +88,7 @@ class UdpDevice final : public Device {
 
   alignas(8) std::array<std::uint8_t, 2048> rx_{};
   alignas(8) std::array<std::uint8_t, udp::kMaxForcePacketBytes> tx_{};
-  DeviceLogRecorder log_;
+  DeviceLogWriter record_;
 };
 
 /// The registry's factory for driver "udp". Throws std::invalid_argument naming `udp_bind` for

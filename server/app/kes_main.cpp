@@ -3,10 +3,11 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <sys/wait.h>
 
 #include <unistd.h>
 
-#include <CLI/CLI.hpp>
+#include "cli_checks.hpp"
 
 #include "app/kes.hpp"
 #include "app/material_file.hpp"
@@ -37,16 +38,21 @@ int main(int argc, char** argv) {
   cli.add_option("material", material_path, "material file (TOML)")->required();
   cli.add_option("--test", test_name, "weft, warp or shear")->required();
   cli.add_option("--measured", measured_path, "measured CSV (test,strain,stress) to compare with");
-  cli.add_option("--csv", csv_path, "write the simulated curve as CSV");
-  cli.add_option("--plot", plot_path, "write a PNG: measured points, material law, simulated test");
+  cli.add_option("--csv", csv_path, "write the simulated curve as CSV")->check(opts::writable_file());
+  cli.add_option("--plot", plot_path, "write a PNG: measured points, material law, simulated test")
+      ->check(opts::writable_file());
   cli.add_flag("--json", json, "print the result as one JSON object");
-  cli.add_option("--steps", opt.load_steps, "quasi-static load steps per branch (default 30)");
-  cli.add_option("--cells-per-cm", opt.cells_per_cm, "specimen mesh resolution (default 2)");
-  cli.add_option("--max-strain", opt.max_strain, "tensile: largest strain (default: the law's max_strain)");
-  cli.add_option("--max-shear-deg", opt.max_shear_deg, "shear: sweep to +- this angle (default 8)");
-  cli.add_option("--tension", opt.lateral_tension, "shear: lateral tension, N/m (default 9.81 = 10 gf/cm)");
+  cli.add_option("--steps", opt.load_steps, "quasi-static load steps per branch (default 30)")
+      ->check(CLI::Range(1, 10000));
+  cli.add_option("--cells-per-cm", opt.cells_per_cm, "specimen mesh resolution (default 2)")->check(CLI::Range(1, 50));
+  cli.add_option("--max-strain", opt.max_strain, "tensile: largest strain (default: the law's max_strain)")
+      ->check(opts::positive(1.0));
+  cli.add_option("--max-shear-deg", opt.max_shear_deg, "shear: sweep to +- this angle (default 8)")
+      ->check(opts::positive(45.0, "degrees"));
+  cli.add_option("--tension", opt.lateral_tension, "shear: lateral tension, N/m (default 9.81 = 10 gf/cm)")
+      ->check(opts::number_in(0.0, 1e4, false, "N/m"));
   cli.add_flag("--free-edges", opt.free_edges, "shear: free side edges, as on the tester (see README)");
-  CLI11_PARSE(cli, argc, argv);
+  if (const int rc = opts::parse(cli, argc, argv); rc >= 0) return rc;
 
   app::KesTest test;
   cloth::Material mat;
@@ -92,6 +98,7 @@ int main(int argc, char** argv) {
     if (!measured_path.empty()) cmd += " --measured " + shell_quote(measured_path);
     const int rc = std::system(cmd.c_str());
     fs::remove(tmp);
+    if (WIFEXITED(rc) && WEXITSTATUS(rc) == 2) return 2;  // a user error, already said in one line
     if (rc != 0) {
       std::cerr << "hapticloth-kes: the plot failed (" << cmd << ")\n";
       return 1;

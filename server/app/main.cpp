@@ -5,11 +5,12 @@
 #include <fstream>
 #include <iostream>
 
-#include <CLI/CLI.hpp>
+#include "cli_checks.hpp"
 
 #include "app/run_summary.hpp"
 #include "app/scene_file.hpp"
 #include "app/serve.hpp"
+#include "app/stop_signal.hpp"
 #include "app/toml_file.hpp"
 #include "registry.hpp"
 
@@ -24,15 +25,16 @@ int main(int argc, char** argv) {
   std::string known;
   for (const auto& n : devices::device_names()) known += (known.empty() ? "" : "|") + n;
   cli.add_option("--scene", scene_path, "scene file (TOML)")->required();
-  cli.add_option("--duration", duration, "seconds to run (default: the scene's duration)");
+  cli.add_option("--duration", duration, "seconds to run (default: the scene's duration)")
+      ->check(opts::positive(1e6, "s"));
   cli.add_flag("--headless", headless, "no device: step as fast as possible and print a summary");
   cli.add_flag("--json", json, "print the summary as one JSON object");
   cli.add_option("--solver", solver, "override the scene's solver (pcg, cholmod)");
-  cli.add_option("--dt", dt, "override the scene's time step (s)");
-  cli.add_option("--alpha", alpha, "override the scene's alpha in [0.5, 1]");
+  cli.add_option("--dt", dt, "override the scene's time step (s)")->check(opts::positive(1.0, "s"));
+  cli.add_option("--alpha", alpha, "override the scene's alpha in [0.5, 1]")->check(opts::number_in(0.5, 1.0));
   cli.add_option("--device", device, "haptic device driver (" + known + "); overrides [device] driver");
   cli.add_option("--script", script, "mock: fingertip trajectory (.toml primitives or .csv time,finger,x,y,z)");
-  cli.add_option("--record", record, "mock/udp: write the device log (CSV) here");
+  cli.add_option("--record", record, "mock/udp: write the device log (CSV) here")->check(opts::writable_file());
   cli.add_option("--replay", replay, "replay: the device log to play back");
   cli.add_option("--udp-bind", udp_bind, "udp: HOST:PORT to receive state packets on (default 127.0.0.1:47800)");
   cli.add_flag("--fast", fast, "stepped clock: run the haptic session as fast as possible");
@@ -46,12 +48,15 @@ int main(int argc, char** argv) {
   cli.add_flag("--no-zenoh", no_zenoh, "do not publish over zenoh");
   cli.add_option("--lcm-url", tr.lcm_url, "also publish on this LCM provider (e.g. udpm://239.255.76.67:7667?ttl=0)");
   bool no_lcm_log = false;
-  cli.add_option("--lcm-log", tr.lcm_log, "LCM log of the run (every message); default out/<scene>.lcm");
+  cli.add_option("--lcm-log", tr.lcm_log, "LCM log of the run (every message); default out/<scene>.lcm")
+      ->check(opts::writable_file());
   cli.add_flag("--no-lcm-log", no_lcm_log, "do not write the LCM log");
-  cli.add_option("--cloth-rate", tr.cloth_rate, "Hz, cloth state messages (default 60)");
-  cli.add_option("--max-command-speed", tr.max_command_speed, "m/s, fastest injected fingertip trajectory (default 1)");
+  cli.add_option("--cloth-rate", tr.cloth_rate, "Hz, cloth state messages (default 60)")
+      ->check(opts::positive(1000.0, "Hz"));
+  cli.add_option("--max-command-speed", tr.max_command_speed, "m/s, fastest injected fingertip trajectory (default 1)")
+      ->check(opts::positive(100.0, "m/s"));
   // --- end transport
-  CLI11_PARSE(cli, argc, argv);
+  if (const int rc = opts::parse(cli, argc, argv); rc >= 0) return rc;
 
   try {
     app::Scene scene = app::load_scene(scene_path);
@@ -62,6 +67,11 @@ int main(int argc, char** argv) {
     if (headless) {
       if (duration <= 0) duration = scene.duration;
       const long steps = std::lround(duration / scene.integrator.dt);
+      if (steps < 1) {
+        std::cerr << "hapticloth-server: --duration " << duration << " s is shorter than one step (dt "
+                  << scene.integrator.dt << " s)\n";
+        return 2;
+      }
       const app::RunSummary r = app::run_headless(scene, steps);
       std::cout << (json ? r.to_json() + "\n" : r.to_text());
       return r.finite ? 0 : 1;
@@ -95,6 +105,7 @@ int main(int argc, char** argv) {
       }
     }
     app::ServeOptions so;
+    so.stop = &app::install_stop_signals();
     so.duration = duration;
     so.realtime = !fast;
     so.json = json;

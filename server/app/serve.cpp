@@ -1,8 +1,10 @@
 #include "app/serve.hpp"
 
+#include "app/stop_signal.hpp"
 #include "app/toml_file.hpp"
 
 #include <algorithm>
+#include <csignal>
 #include <chrono>
 #include <cmath>
 #include <iomanip>
@@ -83,7 +85,7 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   {
     auto integ = make_integrator(scene, model);
     const long n = std::max(20L, std::lround(scene.preroll / scene.integrator.dt));
-    for (long k = 0; k < n; ++k) {
+    for (long k = 0; k < n && !(opt.stop && opt.stop->load()); ++k) {
       integ->step(state);
       step_ms.push_back(integ->last_timing().total_ms);
     }
@@ -109,6 +111,7 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   }
   haptics::Session session(model, scene.integrator, cloth::make_solver(scene.solver, scene.pcg),
                            state, dev, sc);
+  session.set_stop_flag(opt.stop);
   auto st = stages(scene, model, median_ms, 1000.0 / sc.haptic_rate);
   if (!dt_note.empty()) st.insert(st.begin() + 1, dt_note);
 
@@ -168,9 +171,19 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   }
   if (opt.realtime) session.run_realtime(duration);
   else session.run_stepped(duration);
+  std::string stopped;
+  if (opt.stop && opt.stop->load()) {
+    std::ostringstream os;
+    os << "by " << (stop_signal() == SIGTERM ? "SIGTERM" : "SIGINT") << " after " << std::setprecision(4)
+       << session.report().sim_time << " s of " << duration << " s";
+    stopped = os.str();
+    if (hub) hub->post_event("stopping", "server stops on a signal: " + stopped);
+  }
 
   const haptics::SessionReport r = session.report();
   const auto& dc = dev.device().counters();
+  const std::string& record = scene.device.record_path;
+  const std::string record_error = dev.last_error();
   const auto& gc = session.gate().counters();
   const auto& ev = session.sim().integrator().events();
   if (opt.json) {
@@ -180,9 +193,13 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
     j["stages"] = st;
     j["device_counters"] = {{"samples", dc.samples}, {"dropped", dc.dropped_total()},
                             {"send_errors", dc.send_errors}};
+    if (!record.empty())
+      j["record"] = {{"path", record}, {"rows", dc.record_rows}, {"dropped", dc.record_dropped},
+                     {"error", record_error.empty() ? nlohmann::json(nullptr) : nlohmann::json(record_error)}};
     j["gate"] = {{"non_finite", gc.non_finite}, {"clamped", gc.clamped},
                  {"slew_limited", gc.slew_limited}, {"stale_events", gc.stale_events}};
     j["integrator_events"] = ev.total();
+    j["stopped"] = stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(stopped);
     out << j.dump() << "\n";
   } else {
     out << r.to_text();
@@ -193,8 +210,13 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
     out << "safety gate      non-finite " << gc.non_finite << ", clamped " << gc.clamped
         << ", slew-limited " << gc.slew_limited << ", stale events " << gc.stale_events << "\n";
     out << "cloth events     " << ev.total() << "\n";
+    if (!record.empty())
+      out << "device record    " << record << ": " << dc.record_rows << " rows, " << dc.record_dropped
+          << " dropped (buffer full)" << (record_error.empty() ? "" : ", " + record_error) << "\n";
+    if (!stopped.empty()) out << "stopped          " << stopped << "\n";
   }
-  return dev.state() == devices::Lifecycle::Failed ? 1 : 0;
+  if (!record_error.empty()) std::cerr << "hapticloth-server: " << record_error << "\n";
+  return dev.state() == devices::Lifecycle::Failed || !record_error.empty() ? 1 : 0;
 }
 
 }  // namespace hapticloth::app

@@ -1,6 +1,7 @@
 // Running a scene with a haptic device: the global simulation and the 1 kHz haptic loop.
 #pragma once
 
+#include <atomic>
 #include <iosfwd>
 #include <string>
 
@@ -17,6 +18,9 @@ struct ServeOptions {
   /// fatal if transport_required, else the server runs without zenoh and says so.
   transport::TransportOptions transport;
   bool transport_required = false;
+  /// Set by a stop signal (install_stop_signals): the preroll and the session end at once,
+  /// the summary says so.
+  const std::atomic<bool>* stop = nullptr;
 };
 
 /// Settles the scene for its preroll, starts the device and the session, runs, and prints what

@@ -268,10 +268,12 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
       fing_[f].now.clear();
       fing_[f].ncand = 0;
       fing_[f].query_extra = -1.0;
+      seen_[f] = false;
       continue;
     }
-    if (!seen_[f]) {  // the first sample: the proxy starts at the fingertip
+    if (!seen_[f]) {  // the first sample, or back after an absence: the proxy starts at the fingertip
       P.x = in[f].position;
+      last_disp_[f].setZero();
       seen_[f] = true;
     }
     p0_[f] = P.x;

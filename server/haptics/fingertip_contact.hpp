@@ -120,7 +120,7 @@ class FingertipContact final : public cloth::StepContacts {
   std::array<ProxyResult, kMaxFingers> out_{};
   std::array<Vec3, kMaxFingers> last_disp_{};
   std::array<Vec3, kMaxFingers> p0_{};  // proxies at the start of the step
-  std::array<bool, kMaxFingers> seen_{}, valid_{};  // a device sample ever / this step
+  std::array<bool, kMaxFingers> seen_{}, valid_{};  // present since the last absence / this step
   const cloth::ClothState* s0_ = nullptr;          // the state the step started from
   double h_ = 1e-3;
   double vmax_ = 0.0;  // fastest vertex at the start of the step, m/s

@@ -68,6 +68,9 @@ struct FingerReport {
   int triangle = -1;             ///< contact triangle, -1 if none
   double bary[3] = {0, 0, 0};
   double stiffness = 0.0;        ///< N/m of the contact spring (for the implicit coupling)
+  /// The device has a fresh sample of this finger (its first one arrived and the watchdog has
+  /// not tripped since). An absent finger touches nothing and is rendered no force.
+  bool present = false;
   bool in_contact = false;
   bool slipping = false;
   Vec3 velocity = Vec3::Zero();      ///< fingertip velocity, m/s (scene frame)

@@ -32,6 +32,27 @@ void HapticLoop::enable_local_patch(const std::vector<Vec3>& rest, const std::ve
   contact_ = patch_.get();
 }
 
+bool HapticLoop::wind_down(double now) noexcept {
+  if (dev_.read(now, state_) == devices::Status::Error) ++device_errors_;
+  cmd_ = devices::DeviceCommand{};
+  gate_.apply(now, state_.received_time, cmd_, gated_);
+  if (dev_.write(now, gated_) == devices::Status::Error) ++device_errors_;
+  last_now_ = now;
+  for (int f = 0; f < fingers_; ++f)
+    if (!gated_.force[f].isZero(0.0)) return false;
+  return true;
+}
+
+// An absent finger's report: where the device says it is, touching nothing, no force.
+void HapticLoop::absent(FingerReport& r, const Vec3& centre, const Vec3& velocity) noexcept {
+  const std::uint64_t impacts = r.impacts;
+  r = FingerReport{};
+  r.position = centre;
+  r.proxy = centre;
+  r.velocity = velocity;
+  r.impacts = impacts;
+}
+
 void HapticLoop::tick(double now) noexcept {
   ++tick_;
   const double tick_dt = last_now_ >= 0.0 ? std::clamp(now - last_now_, 0.0, 0.05) : 0.0;
@@ -44,10 +65,20 @@ void HapticLoop::tick(double now) noexcept {
   bool contact = false;
   report_.time = now;
   report_.tick = tick_;
+  // A finger is there only while the device has a fresh sample of it: before its first
+  // sample the device's position means nothing (a UDP rig not yet connected reads as the
+  // device origin, which may be inside the cloth), and after a watchdog trip it is unknown.
+  const bool present = gate_.fresh(now, state_.received_time);
   for (int f = 0; f < fingers_; ++f) {
     const Vec3 c = map_.origin + map_.R * state_.finger[f].position;
     const Vec3 vc = map_.R * state_.finger[f].velocity;
-    contact_->touch(s, now, tick_dt, Fingertip{f, c, vc}, report_.finger[f]);
+    if (present) {
+      contact_->touch(s, now, tick_dt, Fingertip{f, c, vc}, report_.finger[f]);
+    } else {
+      if (report_.finger[f].present) contact_->release(f);
+      absent(report_.finger[f], c, vc);
+    }
+    report_.finger[f].present = present;
     contact = contact || report_.finger[f].in_contact;
     // Scene -> device frame for the force.
     cmd_.force[f] = map_.R.transpose() * report_.finger[f].force;

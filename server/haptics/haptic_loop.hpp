@@ -43,6 +43,9 @@ class HapticLoop {
 
   /// One tick at loop time `now` (s). Real-time safe.
   void tick(double now) noexcept;
+  /// A closing tick: zero force commanded through the safety gate (which slew-limits the way
+  /// down). Returns true once the force sent to the device is zero on every finger.
+  bool wind_down(double now) noexcept;
 
   /// Local refinement (4.2): a subdivided patch per fingertip simulated at the haptic rate.
   /// Set-up only (allocates the patches).
@@ -66,6 +69,7 @@ class HapticLoop {
   std::uint64_t narrow_phase_skipped() const { return np_skipped_; }
 
  private:
+  static void absent(FingerReport& r, const Vec3& centre, const Vec3& velocity) noexcept;
 
   const std::vector<std::array<int, 3>>& tris_;
   devices::DeviceHandle& dev_;

@@ -20,6 +20,7 @@ class PatchContact final : public SurfaceContact {
                double k, double damping, double friction);
   void touch(const ClothSnapshot& s, double now, double tick_dt, const Fingertip& tip,
              FingerReport& out) noexcept override;
+  void release(int finger) noexcept override { proxy_[finger] = Proxy{}; }
   std::uint64_t rebuilds() const { return rebuilds_; }
   std::uint64_t softened() const { return softened_; }
 

@@ -98,7 +98,7 @@ void Session::run_realtime(double seconds) {
   std::atomic<bool> stop_flag{false};
   r_.haptic = LoopStats{};
   // Real-time scheduling when permitted; a clean fallback (with the reason) when not.
-  r_.memory_locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+  r_.memory_locked = sc_.try_realtime && mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
   std::string note;
   const double period = 1.0 / sc_.haptic_rate;
   const double t_start = mono_now() + 0.01;
@@ -134,7 +134,7 @@ void Session::run_realtime(double seconds) {
       note = "real-time scheduling not requested";
     }
     const long ticks = std::lround(seconds * sc_.haptic_rate);
-    for (long k = 0; k < ticks; ++k) {
+    for (long k = 0; k < ticks && !stop_requested(); ++k) {
       const double deadline = t_start + k * period;
       // Sleep to just before the deadline, then spin the rest: the kernel's wake-up is late by
       // tens of microseconds (more on a virtual machine); the spin costs spin_lead of CPU per tick.
@@ -154,11 +154,18 @@ void Session::run_realtime(double seconds) {
       ++r_.haptic.ticks;
       if (done > deadline + period) ++r_.haptic.missed_deadlines;
     }
+    // The end (of the run, or a stop signal): zero force through the gate, at the loop rate.
+    const double t_end = mono_now();
+    for (long j = 1; j <= kWindDownTicks; ++j) {
+      const timespec ts = to_timespec(t_end + j * period);
+      clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+      if (loop_->wind_down(mono_now() - t_start)) break;
+    }
   });
   haptic_thread.join();
   stop_flag = true;
   sim_thread.join();
-  r_.sim_time = seconds;
+  r_.sim_time = static_cast<double>(r_.haptic.ticks) * period;
   r_.scheduling_note = note;
   if (r_.memory_locked) munlockall();
   stop();

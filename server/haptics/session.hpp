@@ -74,6 +74,10 @@ class Session {
   /// its step allows, up to one step per integrator dt.
   void run_realtime(double seconds);
 
+  /// A run ends at its next haptic tick once `*flag` is true (a stop signal); the report then
+  /// covers the time run.
+  void set_stop_flag(const std::atomic<bool>* flag) { stop_request_ = flag; }
+
   /// Observers are called on the loops' threads (see SessionObserver); add before running.
   void add_observer(SessionObserver* o) { observers_.push_back(o); }
 
@@ -86,6 +90,10 @@ class Session {
   void start();
   void stop();
   void account_tick();
+  /// Most closing ticks that bring the force to zero through the gate's slew limit (the
+  /// default 1000 N/s takes 5 ms from 5 N).
+  static constexpr long kWindDownTicks = 200;
+  bool stop_requested() const { return stop_request_ && stop_request_->load(std::memory_order_relaxed); }
 
   devices::DeviceHandle& dev_;
   SessionConfig sc_;
@@ -97,6 +105,7 @@ class Session {
   std::unique_ptr<HapticLoop> loop_;
   std::vector<std::array<int, 3>> tris_;
   std::vector<SessionObserver*> observers_;
+  const std::atomic<bool>* stop_request_ = nullptr;
   SessionReport r_;
 };
 
@@ -108,7 +117,8 @@ void Session::run_stepped(double seconds, double sim_period, F&& on_tick) {
   const double sp = sim_period > 0.0 ? sim_period : dt_sim_;
   const long every = std::max(1L, std::lround(sp / hp));
   const long ticks = std::lround(seconds / hp);
-  for (long k = 0; k < ticks; ++k) {
+  long k = 0;
+  for (; k < ticks && !stop_requested(); ++k) {
     const double now = k * hp;
     if (k % every == 0) {
       sim_->step(now);
@@ -124,7 +134,9 @@ void Session::run_stepped(double seconds, double sim_period, F&& on_tick) {
       o->on_haptic_tick(loop_->last_report(), loop_->device_state(), loop_->last_command());
     on_tick(*loop_, *sim_);
   }
-  r_.sim_time = ticks * hp;
+  r_.sim_time = k * hp;
+  for (long j = 0; j < kWindDownTicks && !loop_->wind_down((k + j) * hp); ++j) {
+  }
   stop();
 }
 

@@ -91,7 +91,7 @@ std::array<FingerTarget, kMaxFingers> SimWorker::fingertip_targets(const HapticR
   const double h = integ_.config().dt;
   const double ahead = std::clamp(now + h - r.time, 0.0, 2.0 * h);
   for (int f = 0; f < fingers_ && r.time >= 0.0; ++f) {
-    t[f].valid = true;
+    t[f].valid = r.finger[f].present;
     t[f].position = r.finger[f].position + ahead * r.finger[f].velocity;
     t[f].velocity = r.finger[f].velocity;
   }
@@ -110,7 +110,7 @@ void SimWorker::mark_near(const HapticReport& r) {
   const double reach = fp_.radius + cp_.margin;
   for (int fi = 0; fi < fingers_; ++fi) {
     const Vec3& p = r.finger[fi].position;
-    snap.near[fi] = r.time >= 0.0 && (p.array() >= lo.array() - reach).all() &&
+    snap.near[fi] = r.time >= 0.0 && r.finger[fi].present && (p.array() >= lo.array() - reach).all() &&
                     (p.array() <= hi.array() + reach).all();
   }
 }

@@ -22,6 +22,9 @@ class SurfaceContact {
   /// Real-time safe: no allocation, no lock.
   virtual void touch(const ClothSnapshot& s, double now, double tick_dt, const Fingertip& tip,
                      FingerReport& out) noexcept = 0;
+  /// The finger left (no fresh device sample): forget its contact state, so that it starts
+  /// afresh where the device puts it when it comes back.
+  virtual void release(int finger) noexcept { (void)finger; }
 };
 
 }  // namespace hapticloth::haptics

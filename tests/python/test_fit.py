@@ -459,3 +459,67 @@ def test_empty_file(tmp_path):
     r = cli(csv, "-o", tmp_path / "out.toml")
     assert r.returncode == 2
     assert f"{csv}:1:" in r.stderr and "header row" in r.stderr
+
+
+# --------------------------------------------------------------------------------------------
+# User errors through the console script: one line naming the file, line or option, exit 2
+# --------------------------------------------------------------------------------------------
+
+
+def fit_tool(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    """hapticloth-fit as installed (the venv's console script: the real entry point)."""
+    exe = Path(sys.executable).parent / "hapticloth-fit"
+    if not exe.is_file():
+        pytest.skip("hapticloth-fit is not installed in the venv (tools/setup)")
+    return subprocess.run([str(exe), *map(str, args)], capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def assert_user_error(r: subprocess.CompletedProcess, *named: str) -> None:
+    assert "Traceback" not in r.stdout + r.stderr, r.stderr
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    assert r.stderr.count("\n") == 1, r.stderr  # one line
+    for n in named:
+        assert n in r.stderr, (n, r.stderr)
+
+
+@pytest.mark.parametrize("value", ["1e300", "-1e300", "2e6"])
+def test_huge_stress_is_a_line_error(value, tmp_path):
+    # A fabric CSV with one stress far out of range (1e300 once overflowed inside the fit).
+    lines = (MEASURED / "11oz-black-denim.csv").read_text().splitlines()
+    i = next(k for k, x in enumerate(lines) if x.startswith("warp,"))
+    test, strain, _ = lines[i + 3].split(",")
+    lines[i + 3] = f"{test},{strain},{value}"
+    csv = tmp_path / "huge.csv"
+    csv.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "out.toml"
+    r = fit_tool(csv, "-o", out)
+    assert_user_error(r, f"{csv}:{i + 4}: stress {value} is outside")
+    assert not out.exists()
+
+
+def test_strain_in_percent_is_a_line_error(tmp_path):
+    lines = replace(good_lines(), "weft,0.07,119.0", "weft,70,119.0")
+    csv = tmp_path / "percent.csv"
+    csv.write_text("\n".join(lines) + "\n")
+    assert_user_error(fit_tool(csv, "-o", tmp_path / "out.toml"), f"{csv}:11: strain 70",
+                      "not percent")
+
+
+@pytest.mark.parametrize("option", ["-o", "--plot"])
+def test_unwritable_output_is_named_before_the_fit(option, tmp_path):
+    csv = tmp_path / "good.csv"
+    csv.write_text("\n".join(good_lines()) + "\n")
+    bad = tmp_path / "missing" / "out.file"
+    out = tmp_path / "out.toml"
+    args = ["-o", bad] if option == "-o" else ["-o", out, "--plot", bad]
+    r = fit_tool(csv, *args, "--segments", "1")
+    long_option = {"-o": "--output", "--plot": "--plot"}[option]
+    assert_user_error(r, f"{long_option} {bad}: cannot write: the folder {bad.parent} does not exist")
+    assert not out.exists()  # neither output is written when one cannot be
+
+
+def test_output_is_a_folder(tmp_path):
+    csv = tmp_path / "good.csv"
+    csv.write_text("\n".join(good_lines()) + "\n")
+    assert_user_error(fit_tool(csv, "-o", tmp_path), f"--output {tmp_path}: is a folder")

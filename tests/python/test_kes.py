@@ -88,3 +88,54 @@ def test_bad_material_and_test_name_exit_2(tmp_path):
     assert r.returncode == 2 and str(m) in r.stderr
     r = kes(LIBRARY / "11oz-black-denim.toml", "--test", "bias")
     assert r.returncode == 2 and "unknown test 'bias'" in r.stderr
+
+
+# hapticloth-kes checks its output paths before the test runs (exit 2, the option named).
+def test_plot_to_a_missing_folder_is_exit_2_before_the_test(tmp_path):
+    png = tmp_path / "missing" / "kes.png"
+    r = kes(LIBRARY / "11oz-black-denim.toml", "--test", "warp", "--plot", png)
+    assert "Traceback" not in r.stdout + r.stderr, r.stderr
+    assert r.returncode == 2
+    assert f"--plot: cannot write {png}: the folder {png.parent} does not exist" in r.stderr, r.stderr
+    assert r.stdout == ""  # no test was run
+
+
+def kes_plot(*args) -> subprocess.CompletedProcess:
+    """The plot step alone, as hapticloth-kes runs it (the venv's python -m hapticloth.kes_plot)."""
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "hapticloth.kes_plot", *map(str, args)],
+                          capture_output=True, text=True, timeout=120)
+
+
+def sim_csv(tmp_path) -> Path:
+    out = tmp_path / "sim.csv"
+    r = kes(LIBRARY / "11oz-black-denim.toml", "--test", "warp", "--csv", out)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+KES_PLOT_ERROR = "hapticloth-kes-plot: --plot {png}: cannot write: the folder {folder} does not exist"
+
+
+def test_kes_plot_step_exits_2_for_a_missing_folder(tmp_path):
+    png = tmp_path / "missing" / "kes.png"
+    r = kes_plot(sim_csv(tmp_path), png, "--test", "warp")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr.strip() == KES_PLOT_ERROR.format(png=png, folder=png.parent)
+
+
+def test_kes_plot_step_names_a_bad_csv(tmp_path):
+    png = tmp_path / "kes.png"
+    bad = tmp_path / "bad.csv"
+    bad.write_text("strain,stress_n_per_m,material_n_per_m\n0,0,0\n0.1,x,1\n")
+    r = kes_plot(bad, png, "--test", "warp")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert f"{bad}:3: stress_n_per_m 'x' is not a number" in r.stderr
+    binary = tmp_path / "binary.csv"
+    binary.write_bytes(b"\xff\xfe\x00" * 100)
+    r = kes_plot(binary, png, "--test", "warp")
+    assert r.returncode == 2 and f"{binary}: not a text file" in r.stderr
+    r = kes_plot(sim_csv(tmp_path), png, "--test", "warp", "--measured", tmp_path / "nope.csv")
+    assert r.returncode == 2 and f"{tmp_path / 'nope.csv'}: no such file" in r.stderr
+    assert not png.exists()

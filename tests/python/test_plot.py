@@ -173,3 +173,52 @@ def test_pictures_script_on_a_server_log(tmp_path):
     assert png_size(out / "pinch.png") == (1280, 720)
     assert png_size(out / "pinch_shear.png") == (1280, 720)
     assert png_size(out / "plot.png") == (1200, 800)
+
+
+# --- user errors through the console script: one line naming the file or option, exit 2 -----------
+
+def plot_tool(*args) -> subprocess.CompletedProcess:
+    """hapticloth-plot as installed (the venv's console script: the real entry point)."""
+    import sys
+
+    exe = Path(sys.executable).parent / "hapticloth-plot"
+    if not exe.is_file():
+        pytest.skip("hapticloth-plot is not installed in the venv (tools/setup)")
+    return subprocess.run([str(exe), *map(str, args)], capture_output=True, text=True, timeout=120)
+
+
+def assert_user_error(r, *named):
+    assert "Traceback" not in r.stdout + r.stderr, r.stderr
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    assert r.stderr.count("\n") == 1, r.stderr  # one line
+    for n in named:
+        assert str(n) in r.stderr, (n, r.stderr)
+
+
+@pytest.mark.parametrize("content, words", [
+    (None, "cannot open as an LCM log (no such file)"),
+    (b"", "empty, not an LCM log"),
+    (b"time,finger,x,y,z\n0.5,0,0,0,0\n", "not an LCM log"),
+    (bytes(range(256)) * 8, "not an LCM log"),
+])
+def test_missing_or_non_lcm_log(tmp_path, content, words):
+    log = tmp_path / "in.lcm"
+    if content is not None:
+        log.write_bytes(content)
+    out = tmp_path / "x.png"
+    assert_user_error(plot_tool(log, "-o", out), f"hapticloth-plot: {log}: {words}")
+    assert not out.exists()
+
+
+def test_log_that_is_a_folder(tmp_path):
+    assert_user_error(plot_tool(tmp_path, "-o", tmp_path / "x.png"),
+                      f"{tmp_path}: cannot open as an LCM log (a folder)")
+
+
+def test_unwritable_output(tmp_path):
+    log = tmp_path / "run.lcm"
+    write_log(log)
+    out = tmp_path / "missing" / "plot.png"
+    assert_user_error(plot_tool(log, "-o", out),
+                      f"--out {out}: cannot write: the folder {out.parent} does not exist")
+    assert_user_error(plot_tool(log, "-o", tmp_path), f"--out {tmp_path}: is a folder")

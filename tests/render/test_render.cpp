@@ -493,8 +493,9 @@ TEST(Program, SnapshotAndFramesFromALog) {
   fs::remove(png);
   fs::remove(path);
 
-  EXPECT_EQ(run_render("--log " + path + " --snapshot x.png --size 12by5").code, 1);
-  EXPECT_EQ(run_render("--log " + path + " --snapshot x.png --color plaid").code, 1);
+  // Usage errors exit 2, the option named.
+  EXPECT_EQ(run_render("--log " + path + " --snapshot x.png --size 12by5").code, 2);
+  EXPECT_EQ(run_render("--log " + path + " --snapshot x.png --color plaid").code, 2);
 }
 
 }  // namespace

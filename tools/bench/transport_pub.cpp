@@ -7,7 +7,7 @@
 #include <iostream>
 #include <thread>
 
-#include <CLI/CLI.hpp>
+#include "cli_checks.hpp"
 
 #include "cloth/material.hpp"
 #include "cloth/mesh.hpp"
@@ -25,10 +25,10 @@ int main(int argc, char** argv) {
   cli.add_option("--zenoh-listen", listen, "zenoh endpoint (empty: no zenoh)");
   cli.add_option("--lcm-url", lcm_url, "LCM provider (empty: none)");
   cli.add_option("--name", name, "server name in the key expressions");
-  cli.add_option("--rate", rate, "Hz of cloth states (hub mode)");
-  cli.add_option("--duration", duration, "seconds to publish");
-  cli.add_option("--grid", n, "quads per side (22: 968 triangles)");
-  CLI11_PARSE(cli, argc, argv);
+  cli.add_option("--rate", rate, "Hz of cloth states (hub mode)")->check(hapticloth::opts::positive(1e5, "Hz"));
+  cli.add_option("--duration", duration, "seconds to publish")->check(hapticloth::opts::positive(3600.0, "s"));
+  cli.add_option("--grid", n, "quads per side (22: 968 triangles)")->check(CLI::Range(1, 400));
+  if (const int rc = hapticloth::opts::parse(cli, argc, argv); rc >= 0) return rc;
 
   cloth::GridSpec g;
   g.nx = g.ny = n;

@@ -33,7 +33,7 @@
 #include <thread>
 #include <vector>
 
-#include <CLI/CLI.hpp>
+#include "cli_checks.hpp"
 
 #include "udp/udp_device.hpp"
 #include "udp/wire.hpp"
@@ -170,15 +170,15 @@ std::string json(const Percentiles& p) {
 int main(int argc, char** argv) {
   Config cfg;
   CLI::App app{"Round trip rig -> UdpDevice -> rig over loopback; prints JSON."};
-  app.add_option("--duration", cfg.duration, "s of streaming")->check(CLI::Range(0.1, 3600.0));
-  app.add_option("--rate", cfg.rate, "Hz, rig and server loop")->check(CLI::Range(10.0, 10000.0));
+  app.add_option("--duration", cfg.duration, "s of streaming")->check(hapticloth::opts::number_in(0.1, 3600.0, false, "s"));
+  app.add_option("--rate", cfg.rate, "Hz, rig and server loop")->check(hapticloth::opts::number_in(10.0, 10000.0, false, "Hz"));
   app.add_option("--lead-us", cfg.lead_us, "us the rig sends before each server tick")
-      ->check(CLI::Range(0.0, 1e6));
+      ->check(hapticloth::opts::number_in(0.0, 1e6, false, "us"));
   app.add_option("--fingers", cfg.fingers, "fingers per packet")->check(CLI::Range(1, kMaxFingers));
   bool json_flag = true;
   app.add_flag("--json", json_flag, "JSON output (the only format; accepted for uniformity)");
   app.add_flag("--fifo", cfg.fifo, "run both loops SCHED_FIFO (needs the privilege)");
-  CLI11_PARSE(app, argc, argv);
+  if (const int rc = hapticloth::opts::parse(app, argc, argv); rc >= 0) return rc;
 
   DeviceOptions opt;
   opt.driver = "udp";

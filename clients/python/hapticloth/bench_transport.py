@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 from .client import Client, now_utime
+from .errors import UserError, check_number, run_cli
 
 
 def find_binary(name):
@@ -176,10 +177,31 @@ def haptic_impact(seconds, subscribers=4, cloth_rate=120.0, port=17600):
     return out
 
 
+TRANSPORTS = ("zenoh", "lcm")
+
+
+def check_options(a):
+    """UserError naming the first option out of range (every one is bounded: a typo must not
+    start an hour-long run or a sleep that overflows)."""
+    check_number("--seconds", a.seconds, "a positive number of seconds", 0.0, 3600.0,
+                 low_open=True, unit=" s")
+    check_number("--rate", a.rate, "a positive rate in Hz", 0.0, 100000.0, low_open=True, unit=" Hz")
+    check_number("--port", a.port, "a tcp port from 1 to 65535", 1, 65535)
+    check_number("--haptic-seconds", a.haptic_seconds, "a number of seconds >= 0 (0: skip)", 0.0,
+                 3600.0, unit=" s")
+    for t in a.transports.split(","):
+        if t not in TRANSPORTS:
+            raise UserError(f"--transports: unknown transport {t!r} (known: {', '.join(TRANSPORTS)})")
+
+
 def main(argv=None):
+    return run_cli("hapticloth-bench-transport", _main, argv)
+
+
+def _main(argv):
     ap = argparse.ArgumentParser(prog="hapticloth-bench-transport", description=__doc__.split("\n\n")[0])
     ap.add_argument("--json", action="store_true", help="print one JSON object")
-    ap.add_argument("--seconds", type=float, default=5.0, help="per measurement")
+    ap.add_argument("--seconds", type=float, default=5.0, help="per measurement (at most 3600)")
     ap.add_argument("--rate", type=float, default=1000.0, help="Hz of cloth states for the latency runs")
     ap.add_argument("--port", type=int, default=17500, help="zenoh tcp port on 127.0.0.1")
     ap.add_argument("--transports", default="zenoh,lcm")
@@ -187,6 +209,7 @@ def main(argv=None):
                     help="seconds per server run of the haptic-impact measurement (0: skip it)")
     ap.add_argument("--inner-lcm", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
+    check_options(a)
     url = "udpm://239.255.76.67:7667?ttl=0"
     if a.inner_lcm:
         print(json.dumps(run_transport("lcm", a.seconds, a.rate, a.port, url)))

@@ -13,11 +13,14 @@ them short (a slow callback delays this client's later messages, never the serve
         c.inject_trajectory(0, [0.5, 1.0], [[0, 0, 0.0], [0.02, 0, 0.0]])
 """
 
+import math
 import os
+import struct
 import threading
 import time
 
 from . import lcmtypes
+from .errors import UserError
 from .lcmtypes import channel, decoder, event_t, scene_info_t, scene_request_t, trajectory_cmd_t
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
@@ -159,7 +162,10 @@ class Client:
             self._acks[seq] = (e.kind == "command_accepted", e.text)
             self._ack_cv.notify_all()
 
-    def _ensure_acks(self):
+    def listen_for_answers(self):
+        """Starts collecting the server's accept/reject events for this client's commands
+        (wait_ack reads them). Call it before sending: an answer that comes before the
+        subscription is lost."""
         with self._lock:
             if self._ack_sub is None:
                 self._ack_sub = self.subscribe_events(self._on_event)
@@ -169,33 +175,30 @@ class Client:
         (reached times[0] s after the server takes it), then through the points (m, `frame`
         "device" or "scene"). Returns the command's sequence number; with wait=seconds, returns
         (seq, accepted, text) from the server's event, or raises TimeoutError."""
-        if len(times) != len(positions):
-            raise ValueError("times and positions differ in length")
         if wait:
-            self._ensure_acks()
-        with self._lock:
-            self._seq += 1
-            seq = self._seq
-        m = trajectory_cmd_t()
-        m.utime = now_utime()
-        m.source = self.source
-        m.seq = seq
-        m.finger = int(finger)
-        m.frame = FRAMES[frame]
-        m.num_points = len(times)
-        m.times = [float(t) for t in times]
-        m.positions = [[float(c) for c in p] for p in positions]
-        self.publish("trajectory", m.encode())
+            self.listen_for_answers()
+        seq = self.send(trajectory_message(finger, times, positions, frame))
         if not wait:
             return seq
         return (seq,) + self.wait_ack(seq, wait)
+
+    def send(self, m):
+        """Sends the trajectory_cmd_t `m` as this client's next command (its source, seq and
+        utime are set here); returns its sequence number."""
+        with self._lock:
+            self._seq += 1
+            m.seq = self._seq
+        m.source = self.source
+        m.utime = now_utime()
+        self.publish("trajectory", m.encode())
+        return m.seq
 
     def inject_trajectories(self, trajectories, frame="device", wait=None):
         """Several fingers at once: `trajectories` maps finger -> (times, positions). All are
         sent back to back (so the server takes them within a tick or two of each other), then,
         with wait=seconds, the answers are awaited: returns {finger: (seq, accepted, text)}."""
         if wait:
-            self._ensure_acks()
+            self.listen_for_answers()
         seqs = {f: self.inject_trajectory(f, t, p, frame=frame) for f, (t, p) in trajectories.items()}
         if not wait:
             return seqs
@@ -219,46 +222,22 @@ class Client:
         return Recorder(self, path, topics or list(lcmtypes.TOPICS))
 
     def replay(self, path, mode="auto", speed=1.0, lead=0.1, max_seconds=600.0):
-        """Plays a recorded LCM log back into the server.
+        """Plays a recorded LCM log back into the server (see read_replay for the modes).
+        Returns the sequence numbers sent."""
+        return [m.seq for m in self.play(read_replay(path, mode, speed, lead, max_seconds))]
 
-        mode "commands": re-sends the log's trajectory commands (HAPTICLOTH_TRAJECTORY) with
-        their original spacing divided by `speed`. mode "positions": turns the recorded device
-        positions (HAPTICLOTH_HAPTICS) into one trajectory per finger, starting `lead` s after
-        the server takes it, so the fingers repeat the recorded motion. "auto": commands if the
-        log has any, else positions. Returns the sequence numbers sent."""
-        import lcm
-        log = lcm.EventLog(path, "r")
-        commands, samples = [], []
-        for ev in log:
-            if ev.channel == channel("trajectory"):
-                commands.append((ev.timestamp, ev.data))
-            elif ev.channel == channel("haptics"):
-                samples.append(lcmtypes.haptic_state_t.decode(ev.data))
-        log.close()
-        if mode == "auto":
-            mode = "commands" if commands else "positions"
+    def play(self, commands):
+        """Sends [(due, trajectory_cmd_t)] (read_replay), each `due` s after the call;
+        returns the messages sent, with their sequence numbers."""
+        start = time.monotonic()
         sent = []
-        if mode == "commands":
-            t0 = commands[0][0] if commands else 0
-            start = time.monotonic()
-            for ts, data in commands:
-                due = min((ts - t0) / 1e6 / speed, max_seconds)
-                delay = start + due - time.monotonic()
-                if delay > 0:
-                    time.sleep(delay)
-                m = trajectory_cmd_t.decode(data)
-                with self._lock:
-                    self._seq += 1
-                    m.seq = self._seq
-                m.source = self.source
-                m.utime = now_utime()
-                self.publish("trajectory", m.encode())
-                sent.append(m.seq)
-            return sent
-        if mode != "positions":
-            raise ValueError(f"mode must be auto, commands or positions, not {mode!r}")
-        per = {f: tp for f, tp in enumerate(positions_from_haptics(samples, speed, lead)) if tp[0]}
-        return list(self.inject_trajectories(per).values())
+        for due, m in commands:
+            delay = start + due - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            self.send(m)
+            sent.append(m)
+        return sent
 
     # --- lifetime ------------------------------------------------------------------------------
     def close(self):
@@ -284,6 +263,67 @@ class Client:
 
 
 MAX_POINTS = 4096  # the remote device's limit per command
+
+
+def trajectory_message(finger, times, positions, frame="device"):
+    """A trajectory_cmd_t (without source and seq: Client.send sets them)."""
+    if len(times) != len(positions):
+        raise ValueError("times and positions differ in length")
+    m = trajectory_cmd_t()
+    m.finger = int(finger)
+    m.frame = FRAMES[frame]
+    m.num_points = len(times)
+    m.times = [float(t) for t in times]
+    m.positions = [[float(c) for c in p] for p in positions]
+    return m
+
+
+def read_replay(path, mode="auto", speed=1.0, lead=0.1, max_seconds=600.0):
+    """The commands to play back from a recorded LCM log: [(due, trajectory_cmd_t)], `due` in
+    s from the start of the playback.
+
+    mode "commands": the log's trajectory commands (HAPTICLOTH_TRAJECTORY) with their original
+    spacing divided by `speed` (at most `max_seconds` after the first). mode "positions": the
+    recorded device positions (HAPTICLOTH_HAPTICS) as one trajectory per finger, starting
+    `lead` s after the server takes it, so the fingers repeat the recorded motion. "auto":
+    commands if the log has any, else positions. Raises UserError (naming the file) when the
+    log cannot be read or holds nothing to play."""
+    if mode not in ("auto", "commands", "positions"):
+        raise ValueError(f"mode must be auto, commands or positions, not {mode!r}")
+    if not (math.isfinite(speed) and speed > 0):
+        raise ValueError(f"speed must be a positive number, not {speed!r}")
+    log = lcmtypes.open_event_log(path)
+    commands, samples = [], []
+    try:
+        for ev in log:
+            if ev.channel == channel("trajectory"):
+                commands.append((ev.timestamp, _decode(path, trajectory_cmd_t, ev)))
+            elif ev.channel == channel("haptics"):
+                samples.append(_decode(path, lcmtypes.haptic_state_t, ev))
+    finally:
+        log.close()
+    if mode == "auto":
+        mode = "commands" if commands else "positions"
+    if mode == "commands":
+        if not commands:
+            raise UserError(f"{path}: no trajectory commands ({channel('trajectory')}) to replay")
+        t0 = commands[0][0]
+        return [(min((ts - t0) / 1e6 / speed, max_seconds), m) for ts, m in commands]
+    plan = [(0.0, trajectory_message(f, times, points))
+            for f, (times, points) in enumerate(positions_from_haptics(samples, speed, lead)) if times]
+    if not plan:
+        raise UserError(f"{path}: no trajectory commands ({channel('trajectory')}) or device "
+                        f"positions ({channel('haptics')}) to replay")
+    return plan
+
+
+def _decode(path, cls, ev):
+    """cls.decode of a log event; UserError naming the file and the event's channel."""
+    try:
+        return cls.decode(ev.data)
+    except (ValueError, struct.error):
+        raise UserError(f"{path}: an event on {ev.channel} is not a {cls.__name__} "
+                        "(a log of another version of hapticloth?)") from None
 
 
 def positions_from_haptics(samples, speed=1.0, lead=0.1, min_step=0.005):
@@ -376,4 +416,5 @@ def wait_for(pred, timeout, interval=0.01):
 
 
 __all__ = ["Client", "Recorder", "DEFAULT_ENDPOINT", "DEFAULT_LCM_URL", "event_t",
-           "positions_from_haptics", "wait_for", "zenoh_client_config"]
+           "positions_from_haptics", "read_replay", "trajectory_message", "wait_for",
+           "zenoh_client_config"]

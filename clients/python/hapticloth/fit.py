@@ -46,6 +46,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .errors import EXIT_FAILED, UserError, check_writable, run_cli
+
 CURVES = ("weft", "warp", "shear")
 COLUMNS = ("test", "strain", "stress")
 MAX_SEGMENTS = 3
@@ -69,13 +71,18 @@ TANGENT_SAMPLES = 800
 TANGENT_MARGIN = 1e-9
 # Cutting-plane rounds of the monotone fit before it falls back to all tangent samples.
 MAX_CUTS = 40
+# Largest |stress| (N/m) and |strain| of a data point: far beyond any fabric (the KES-F tester's
+# full scale is 490 N/m; a shear angle beyond 90 degrees means nothing), near enough that the
+# fit's scaled arithmetic cannot overflow. Also catches strains in percent or degrees.
+MAX_ABS_STRESS = 1e6
+MAX_ABS_STRAIN = {"weft": 10.0, "warp": 10.0, "shear": math.pi / 2}
 # Knot search: the objective is evaluated on a grid of this many values per unit-box knot
 # coordinate, and least_squares is started from the best LOCAL_STARTS grid points.
 SEARCH_GRID = 12
 LOCAL_STARTS = 4
 
 
-class InputError(Exception):
+class InputError(UserError):
     """A problem with the input file, reported as FILE:LINE: message."""
 
     def __init__(self, path: str, line: int, message: str):
@@ -193,6 +200,16 @@ def read_measured(path: str) -> Measured:
                 path, lineno, f"unknown test {row['test']!r} (expected weft, warp or shear)")
         strain = _parse_number(path, lineno, "strain", row["strain"])
         stress = _parse_number(path, lineno, "stress", row["stress"])
+        if abs(stress) > MAX_ABS_STRESS:
+            raise InputError(
+                path, lineno,
+                f"stress {row['stress']} is outside -{MAX_ABS_STRESS:g}..{MAX_ABS_STRESS:g} N/m")
+        if abs(strain) > MAX_ABS_STRAIN[test]:
+            unit = "rad: a shear angle, not degrees" if test == "shear" else "a fraction, not percent"
+            raise InputError(
+                path, lineno,
+                f"strain {row['strain']} of test '{test}' is beyond {MAX_ABS_STRAIN[test]:.4g} "
+                f"in size (strain is {unit})")
         previous = rows[test]
         if previous and not strain > previous[-1][1]:
             raise InputError(
@@ -747,6 +764,10 @@ def _segments(text: str) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    return run_cli("hapticloth-fit", _main, argv)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(
         prog="hapticloth-fit",
         description="Fit spline material laws (HAPTEX appendix A.2) to measured weft, warp and "
@@ -765,18 +786,21 @@ def main(argv: list[str] | None = None) -> int:
     try:
         measured = read_measured(args.csv)
     except OSError as e:
-        print(f"hapticloth-fit: cannot read {args.csv}: {e.strerror or e}", file=sys.stderr)
-        return 2
-    except InputError as e:
-        print(f"hapticloth-fit: {e}", file=sys.stderr)
-        return 2
+        raise UserError(f"cannot read {args.csv}: {e.strerror or e}") from None
+    # Both outputs are checked before the fit, so that neither is written when one cannot be.
+    check_writable(args.output, "--output")
+    if args.plot:
+        check_writable(args.plot, "--plot")
 
     fits = fit_measured(measured, args.segments)
     for n, f in fits.items():
+        if not np.all(np.isfinite(f.spline.B)) or not np.all(np.isfinite(f.spline.knots)):
+            raise UserError(f"{args.csv}: the fitted {n} law is not finite (the data's strains "
+                            "or stresses span too many orders of magnitude)")
         tmin = f.spline.server_check(f.max_strain)
         if tmin < 0.0:  # cannot happen with the constrained fit; never write a rejected law
             print(f"hapticloth-fit: internal error: {n} tangent {tmin:g} < 0", file=sys.stderr)
-            return 1
+            return EXIT_FAILED
 
     argv_list = sys.argv[1:] if argv is None else argv
     command = "hapticloth-fit " + " ".join(_shell_quote(a) for a in argv_list)
@@ -786,8 +810,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.plot:
             plot_fits(measured, fits, args.plot)
     except OSError as e:
-        print(f"hapticloth-fit: cannot write {e.filename}: {e.strerror}", file=sys.stderr)
-        return 2
+        raise UserError(f"cannot write {e.filename}: {e.strerror}") from None
 
     if args.json:
         print(json.dumps(report_json(measured, fits, args.output), indent=2))

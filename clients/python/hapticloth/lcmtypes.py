@@ -5,7 +5,10 @@ so the package attributes are bound to the classes here, as lcm-gen's own ``__in
 """
 
 import importlib
+import os
 import sys
+
+from .errors import UserError
 
 TYPES = (
     "cloth_topology_t",
@@ -63,3 +66,30 @@ def topic_of_channel(ch):
 
 def decoder(topic):
     return {**TOPICS, **INPUTS}[topic]
+
+
+#: The first bytes of every event of an LCM log (lcm's eventlog format).
+LOG_SYNC = b"\xed\xa1\xda\x01"
+
+
+def open_event_log(path):
+    """lcm.EventLog of `path` for reading; UserError naming the file when it is missing, a
+    folder, empty or not an LCM log (lcm.EventLog itself reads any file as zero events)."""
+    import lcm
+
+    p = os.fspath(path)
+    if not os.path.exists(p):
+        raise UserError(f"{p}: cannot open as an LCM log (no such file)")
+    if os.path.isdir(p):
+        raise UserError(f"{p}: cannot open as an LCM log (a folder)")
+    try:
+        with open(p, "rb") as f:
+            head = f.read(len(LOG_SYNC))
+        log = lcm.EventLog(p, "r")
+    except OSError as e:
+        raise UserError(f"{p}: cannot open as an LCM log ({e.strerror or e})") from None
+    if head != LOG_SYNC:
+        log.close()
+        raise UserError(f"{p}: empty, not an LCM log" if not head
+                        else f"{p}: not an LCM log (it does not start with an LCM event)")
+    return log

@@ -8,7 +8,8 @@ tick is |wake-up - deadline| as the server measures it: the tick's loop-clock ti
 deadline on the nominal grid (the grid's offset taken from the earliest wake-up, as the loop never
 wakes early). On a stepped clock every tick is on its deadline. Quantiles of the period error and
 the compute time also come from the last loop_stats_t when the run published one (real time).
-Exit code 2 when the log cannot be read or holds no haptic samples.
+Exit code 2 (one line naming the file or option) when the log cannot be read or holds no
+haptic samples, or the PNG cannot be written.
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .lcmtypes import haptic_state_t, loop_stats_t, scene_info_t
+from .errors import UserError, check_writable, run_cli
+from .lcmtypes import haptic_state_t, loop_stats_t, open_event_log, scene_info_t
 
 #: Finger colours, as hapticloth-render draws the fingertips.
 FINGER_COLORS = ["#e87d1e", "#1e96af", "#9650be", "#5aa53c"]
@@ -42,22 +44,14 @@ class RunLog:
         return self.force.shape[1]
 
 
-class LogError(Exception):
+class LogError(UserError):
     """The log cannot be used; the message names the file and the reason."""
 
 
 def read_log(path) -> RunLog:
-    """Reads the haptic samples, loop statistics and scene of an LCM log. Raises LogError."""
-    import os
-
-    import lcm
-
-    if not os.path.isfile(path):
-        raise LogError(f"{path}: cannot open as an LCM log (no such file)")
-    try:
-        log = lcm.EventLog(str(path), "r")
-    except (OSError, ValueError) as e:
-        raise LogError(f"{path}: cannot open as an LCM log ({e})") from e
+    """Reads the haptic samples, loop statistics and scene of an LCM log. Raises UserError
+    (LogError) naming the file."""
+    log = open_event_log(path)
     kinds = {cls._get_packed_fingerprint(): cls for cls in (haptic_state_t, loop_stats_t, scene_info_t)}
     batches, stats, scene = [], [], None
     for ev in log:
@@ -209,22 +203,22 @@ def parse_size(s: str):
 
 
 def main(argv=None) -> int:
+    return run_cli("hapticloth-plot", _main, argv)
+
+
+def _main(argv) -> int:
     ap = argparse.ArgumentParser(prog="hapticloth-plot", description=__doc__.splitlines()[0])
     ap.add_argument("log", help="LCM log written by hapticloth-server --lcm-log")
     ap.add_argument("-o", "--out", required=True, help="PNG to write")
     ap.add_argument("--size", type=parse_size, default=(1200, 800), help="WxH in pixels (default 1200x800)")
     ap.add_argument("--title", default=None, help="figure title (default: the scene name)")
     a = ap.parse_args(argv)
-    try:
-        run = read_log(a.log)
-    except LogError as e:
-        print(f"hapticloth-plot: {e}", file=sys.stderr)
-        return 2
+    check_writable(a.out, "--out")  # before reading a long log
+    run = read_log(a.log)
     try:
         plot(run, a.out, a.size, a.title)
     except OSError as e:
-        print(f"hapticloth-plot: {a.out}: cannot write ({e.strerror or e})", file=sys.stderr)
-        return 1
+        raise UserError(f"--out {a.out}: cannot write ({e.strerror or e})") from None
     print(f"{a.out}: {len(run.time)} ticks, {run.fingers} fingers, {len(run.stats)} loop_stats_t")
     return 0
 
