@@ -20,6 +20,7 @@ std::string MockDevice::configure() {
     }
     if (tr_.fingers() != opt_.fingers) return "mock: the trajectory has a different number of fingers";
     tr_.check_inside(opt_.workspace, opt_.script.empty() ? "mock trajectory" : opt_.script);
+    if (!opt_.script.empty()) tr_.check_speed(kMaxScriptSpeed, opt_.script);
   } catch (const std::exception& e) {
     return std::string("mock: ") + e.what();
   }

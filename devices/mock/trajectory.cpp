@@ -72,6 +72,22 @@ void Trajectory::check_inside(const Box& b, const std::string& source) const {
   }
 }
 
+void Trajectory::check_speed(double max_speed, const std::string& source) const {
+  for (int f = 0; f < fingers(); ++f) {
+    const auto& k = keys_[f];
+    for (size_t i = 1; i < k.size(); ++i) {
+      const double d = (k[i].p - k[i - 1].p).norm(), dt = k[i].t - k[i - 1].t;
+      if (d > max_speed * dt) {
+        std::ostringstream os;
+        os << source << ": finger " << f << " moves " << d * 1e3 << " mm in " << dt
+           << " s between t = " << k[i - 1].t << " and " << k[i].t << " s (" << (dt > 0 ? d / dt : INFINITY)
+           << " m/s), faster than " << max_speed << " m/s (kMaxScriptSpeed: a hand moves at up to about 2 m/s)";
+        throw std::invalid_argument(os.str());
+      }
+    }
+  }
+}
+
 Trajectory load_trajectory_csv(const std::string& path, int fingers) {
   std::ifstream in(path);
   if (!in) throw std::invalid_argument(path + ": cannot open the trajectory");
@@ -109,6 +125,12 @@ Trajectory load_trajectory_csv(const std::string& path, int fingers) {
     const auto& k = tr.keys(static_cast<int>(f));
     if (!k.empty() && t < k.back().t)
       throw std::invalid_argument(where + "time goes backwards for finger " + std::to_string(static_cast<int>(f)));
+    if (!k.empty() && (p - k.back().p).norm() > kMaxScriptSpeed * (t - k.back().t)) {
+      std::ostringstream os;
+      os << where << "finger " << static_cast<int>(f) << " moves " << (p - k.back().p).norm() * 1e3
+         << " mm in " << t - k.back().t << " s, faster than " << kMaxScriptSpeed << " m/s";
+      throw std::invalid_argument(os.str());
+    }
     tr.add(static_cast<int>(f), t, p);
   }
   if (!header) throw std::invalid_argument(path + ": empty trajectory (no header)");

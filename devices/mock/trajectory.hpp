@@ -27,10 +27,18 @@ class Trajectory {
   const std::vector<Keyframe>& keys(int finger) const { return keys_[finger]; }
   /// Throws std::invalid_argument naming the first keyframe outside the box.
   void check_inside(const Box& b, const std::string& source) const;
+  /// Throws std::invalid_argument naming `source`, the finger and the times if a fingertip
+  /// moves faster than `max_speed` (m/s) between two keyframes (a jump).
+  void check_speed(double max_speed, const std::string& source) const;
 
  private:
   std::vector<std::vector<Keyframe>> keys_;
 };
+
+/// Fastest fingertip a mock script may ask for, m/s: a hand moves at up to about 2 m/s; a
+/// faster step is a jump (a typo in a position or a time), which the server would render as an
+/// impact no person can make.
+inline constexpr double kMaxScriptSpeed = 5.0;
 
 /// CSV `time,finger,x,y,z` (m, device frame). Errors: "PATH:LINE: message".
 Trajectory load_trajectory_csv(const std::string& path, int fingers);

@@ -11,6 +11,7 @@
 #include "app/material_file.hpp"
 #include "app/obj_file.hpp"
 #include "app/toml_file.hpp"
+#include "registry.hpp"
 
 namespace hapticloth::app {
 
@@ -115,6 +116,12 @@ void load_device(const TomlFile& f, const toml::table& t, const std::string& pat
   auto& d = s.device;
   s.has_device = true;
   d.driver = f.string(t, "device", "driver");
+  const auto known = devices::device_names();
+  if (std::find(known.begin(), known.end(), d.driver) == known.end()) {
+    std::string list;
+    for (const auto& n : known) list += (list.empty() ? "" : ", ") + n;
+    f.fail(t.get("driver"), "device.driver", "unknown driver '" + d.driver + "' (" + list + ")");
+  }
   d.fingers = static_cast<int>(f.integer(t, "device", "fingers", d.fingers));
   if (d.fingers < 2 || d.fingers > devices::kMaxFingers)
     f.fail(t.get("fingers"), "device.fingers", "must be 2 to 5");

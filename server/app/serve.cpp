@@ -114,6 +114,12 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   session.set_stop_flag(opt.stop);
   auto st = stages(scene, model, median_ms, 1000.0 / sc.haptic_rate);
   if (!dt_note.empty()) st.insert(st.begin() + 1, dt_note);
+  if (sc.finger.stiffness > dev.info().max_stiffness) {
+    std::ostringstream os;
+    os << "coupling stiffness " << sc.finger.stiffness << " N/m clamped to the device's max_stiffness "
+       << dev.info().max_stiffness << " N/m ([haptics] stiffness)";
+    st.insert(st.begin() + 1, os.str());
+  }
 
   // --- transport: the Hub publishes the session over zenoh / LCM and feeds the remote device
   std::unique_ptr<transport::Hub> hub;
@@ -186,6 +192,7 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   const std::string record_error = dev.last_error();
   const auto& gc = session.gate().counters();
   const auto& ev = session.sim().integrator().events();
+  const transport::HubStats hs = hub->stats();
   if (opt.json) {
     nlohmann::json j = nlohmann::json::parse(r.to_json());
     j["scene"] = scene.name;
@@ -199,6 +206,7 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
     j["gate"] = {{"non_finite", gc.non_finite}, {"clamped", gc.clamped},
                  {"slew_limited", gc.slew_limited}, {"stale_events", gc.stale_events}};
     j["integrator_events"] = ev.total();
+    j["trajectory_commands"] = {{"accepted", hs.commands_accepted}, {"rejected", hs.commands_rejected}};
     j["stopped"] = stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(stopped);
     out << j.dump() << "\n";
   } else {
@@ -210,6 +218,7 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
     out << "safety gate      non-finite " << gc.non_finite << ", clamped " << gc.clamped
         << ", slew-limited " << gc.slew_limited << ", stale events " << gc.stale_events << "\n";
     out << "cloth events     " << ev.total() << "\n";
+    out << "trajectory cmds  accepted " << hs.commands_accepted << ", rejected " << hs.commands_rejected << "\n";
     if (!record.empty())
       out << "device record    " << record << ": " << dc.record_rows << " rows, " << dc.record_dropped
           << " dropped (buffer full)" << (record_error.empty() ? "" : ", " + record_error) << "\n";

@@ -53,6 +53,9 @@ Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& 
   if (dev_.state() != devices::Lifecycle::Inactive)
     throw std::invalid_argument("session: the device must be configured (inactive)");
   if (!(sc_.haptic_rate > 0.0)) throw std::invalid_argument("session: haptic_rate must be > 0");
+  // The device renders no stiffer a spring stably: the coupling is clamped to its limit for
+  // both surface models (the proxy's spring in the implicit step and the patch's contact).
+  sc_.finger.stiffness = std::min(sc_.finger.stiffness, dev_.info().max_stiffness);
   gate_ = std::make_unique<devices::SafetyGate>(dev_.info(), sc_.gate);
   snap_ = std::make_unique<TripleBuffer<ClothSnapshot>>(sized_snapshot(model.num_vertices()));
   rep_ = std::make_unique<TripleBuffer<HapticReport>>(HapticReport{});

@@ -142,7 +142,9 @@ class Hub : public haptics::SessionObserver {
   std::vector<HapticSample> ring_;
   std::atomic<std::uint64_t> head_{0}, tail_{0};
   std::uint64_t last_tick_ = 0;     // haptic thread only
-  bool was_stale_ = false;          // haptic thread only
+  // The gate starts stale (no device sample yet), and counts a trip on each fresh -> stale
+  // transition; so does this (the summary's stale events and the watchdog events agree).
+  bool was_stale_ = true;           // haptic thread only
   std::atomic<std::uint64_t> ring_dropped_{0}, watchdog_trips_{0}, nan_forces_{0};
   std::atomic<std::uint64_t> dropped_packets_{0};
 

@@ -358,6 +358,12 @@ TEST_F(FilesTest, SceneKernelKeyWithDirectCoupling) {
   EXPECT_NO_THROW(scene(kScene + "\n[haptics]\nlocal_patch = \"on\"\nkernel_radius = 0.02\n"));
 }
 
+TEST_F(FilesTest, SceneUnknownDeviceDriver) {
+  const auto path = (dir_ / "scene.toml").string();
+  expect_config_error([&] { scene(kScene + "\n[device]\ndriver = \"phantom\"\n"); },
+                      {path, at_line(18), "key 'device.driver'", "unknown driver 'phantom'", "mock"});
+}
+
 TEST_F(FilesTest, SceneAlphaOutOfRange) {
   const auto path = (dir_ / "scene.toml").string();
   expect_config_error([&] { scene(with_line(kScene, 14, "alpha = 0.3")); },

@@ -183,6 +183,38 @@ TEST(MockDevice, RefusesAScriptOutsideTheWorkspace) {
   EXPECT_EQ(h.state(), Lifecycle::Unconfigured);
 }
 
+// A script step faster than a hand (kMaxScriptSpeed) is a jump: refused at configure, naming
+// the file and line (CSV) or the finger and times (TOML primitives).
+TEST(MockDevice, RefusesAScriptThatJumps) {
+  DeviceOptions o;
+  o.script = write_tmp("time,finger,x,y,z\n0,0,0,0,0.03\n0,1,0.03,0,0.03\n"
+                       "1,0,0,0,0.03\n1.001,0,0.014,0,0.03\n1,1,0.03,0,0.03\n",
+                       ".csv");
+  DeviceHandle h(make_device(o));
+  const std::string e = h.configure();
+  EXPECT_NE(e.find(o.script + ":5: finger 0 moves 14 mm in 0.001 s"), std::string::npos) << e;
+  fs::remove(o.script);
+  // At 4.5 m/s, under the limit, the same step is accepted.
+  o.script = write_tmp("time,finger,x,y,z\n0,0,0,0,0.03\n0,1,0.03,0,0.03\n"
+                       "1,0,0,0,0.03\n1.001,0,0.0045,0,0.03\n1,1,0.03,0,0.03\n",
+                       ".csv");
+  DeviceHandle ok(make_device(o));
+  EXPECT_EQ(ok.configure(), "");
+  fs::remove(o.script);
+  Trajectory tr(2);
+  tr.add(0, 0.0, Vec3::Zero());
+  tr.add(0, 0.5, Vec3(0.0, 0.0, 0.01));
+  tr.add(0, 0.501, Vec3(0.0, 0.0, 0.02));
+  tr.add(1, 0.0, Vec3::Zero());
+  try {
+    tr.check_speed(kMaxScriptSpeed, "s.toml");
+    ADD_FAILURE();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("s.toml: finger 0 moves 10 mm in 0.001 s between t = 0.5 and 0.501 s"),
+              std::string::npos) << e.what();
+  }
+}
+
 TEST(Registry, KnowsItsDriversAndRefusesOthers) {
   const auto n = device_names();
   EXPECT_NE(std::find(n.begin(), n.end(), "mock"), n.end());
