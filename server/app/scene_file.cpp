@@ -163,8 +163,8 @@ void load_device(const TomlFile& f, const toml::table& t, const std::string& pat
 void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   f.only_keys(t, "haptics", {"rate", "finger_radius", "stiffness", "damping", "friction",
                              "kernel_radius", "margin", "preroll", "slew_rate", "watchdog_ms",
-                             "ramp_ms", "max_force", "realtime", "local_patch", "finger_mass",
-                             "contact_stiffness"});
+                             "ramp_ms", "max_force", "realtime", "local_patch", "local_model",
+                             "finger_mass", "contact_stiffness"});
   auto& h = s.haptics;
   auto positive = [&](const char* key, double& v, const char* unit) {
     v = f.number(t, "haptics", key, v);
@@ -195,13 +195,24 @@ void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   s.local_patch = f.string(t, "haptics", "local_patch", s.local_patch);
   if (s.local_patch != "auto" && s.local_patch != "on" && s.local_patch != "off")
     f.fail(t.get("local_patch"), "haptics.local_patch", "must be \"auto\", \"on\" or \"off\"");
-  // Direct coupling solves the fingertip spheres with the cloth: no kernel spreads the force
-  // and the contact itself exchanges the impact momentum.
-  for (const char* key : {"kernel_radius", "finger_mass"})
-    if (s.local_patch == "off" && t.contains(key))
+  const std::string model = f.string(t, "haptics", "local_model", haptics::to_string(h.local_model));
+  if (model == "response") h.local_model = haptics::LocalModel::Response;
+  else if (model == "patch") h.local_model = haptics::LocalModel::Patch;
+  else f.fail(t.get("local_model"), "haptics.local_model", "must be \"response\" or \"patch\"");
+  // Direct coupling and the response model solve the fingertip spheres with the cloth: no
+  // kernel spreads the force and the contact itself exchanges the impact momentum.
+  for (const char* key : {"kernel_radius", "finger_mass"}) {
+    if (!t.contains(key)) continue;
+    if (s.local_patch == "off")
       f.fail(t.get(key), std::string("haptics.") + key,
-             "applies only to local_patch = \"on\"; with direct coupling the fingertip is a sphere "
-             "solved with the cloth (its contact is set by contact_stiffness)");
+             "applies only to local_patch = \"on\" with local_model = \"patch\"; with direct "
+             "coupling the fingertip is a sphere solved with the cloth (its contact is set by "
+             "contact_stiffness)");
+    if (h.local_model != haptics::LocalModel::Patch)
+      f.fail(t.get(key), std::string("haptics.") + key,
+             "applies only to local_model = \"patch\"; the response model solves the fingertip "
+             "sphere with the cloth (its contact is set by contact_stiffness)");
+  }
 }
 
 }  // namespace

@@ -31,8 +31,14 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
   std::ostringstream os;
   os << std::fixed << std::setprecision(3);
   const bool fits = step_ms <= haptic_period_ms;
-  if (sc.haptics.local_patch) {
-    os << "local refinement on (" << (sc.local_patch == "on" ? "asked for" : "the global step")
+  if (sc.haptics.local_patch && sc.haptics.local_model == haptics::LocalModel::Response) {
+    os << "multirate, local model response (" << (sc.local_patch == "on" ? "asked for" : "the global step")
+       << " " << step_ms << " ms median at start-up vs the " << haptic_period_ms
+       << " ms haptic period): the fingertips are spheres solved with the whole cloth at each "
+       << sc.integrator.dt * 1e3 << " ms global step, which hands the haptic loop its linear response"
+       << " to both fingertips; a contact starts at the next global step (docs/contact.md)";
+  } else if (sc.haptics.local_patch) {
+    os << "multirate, local model patch (" << (sc.local_patch == "on" ? "asked for" : "the global step")
        << " " << step_ms << " ms median at start-up vs the " << haptic_period_ms
        << " ms haptic period): a subdivided patch per fingertip runs at the haptic rate."
        << " Limits (BENCHMARKS.md): a pinch is not held (each fingertip pushes its own patch),"
@@ -47,14 +53,16 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
        << " last step is rendered until the next";
   }
   s.push_back(os.str());
-  if (sc.haptics.local_patch && sc.integrator.alpha < 1.0) {
+  if (sc.haptics.local_patch && sc.haptics.local_model == haptics::LocalModel::Patch &&
+      sc.integrator.alpha < 1.0) {
     std::ostringstream a;
     a << "alpha " << sc.integrator.alpha << " < 1 with local refinement: on stiff cloth this"
       << " abandons steps (hapticloth-bench stability, BENCHMARKS.md); the integrator switches to"
       << " alpha 1 at the first energy explosion, and alpha 1 is the recommended setting here";
     s.push_back(a.str());
   }
-  if (!sc.haptics.local_patch && sc.integrator.alpha < 1.0) {
+  if ((!sc.haptics.local_patch || sc.haptics.local_model == haptics::LocalModel::Response) &&
+      sc.integrator.alpha < 1.0) {
     std::ostringstream a;
     a << "alpha " << sc.integrator.alpha << " < 1 asked for, alpha 1 used: the fingertip contacts"
       << " are stiff springs in the implicit step, which only backward Euler damps"

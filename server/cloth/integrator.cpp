@@ -413,8 +413,37 @@ const SymCsr& Integrator::system_matrix(const ClothState& s, double h, JacobianM
   return A_;
 }
 
+bool Integrator::proxy_response(std::vector<Mat3>& R) {
+  const int P = cfg_.proxies, nf = sys_.free_nodes;
+  R.assign(static_cast<size_t>(P) * P, Mat3::Zero());
+  if (P == 0 || !(last_h_ > 0.0)) return false;
+  if (response_.size() != static_cast<size_t>(3 * P)) {
+    response_.assign(3 * P, Eigen::VectorXd::Zero(A_.n));
+    unit_.setZero(A_.n);
+  }
+  const double h = last_h_, ah = alpha_ * h;
+  for (int q = 0; q < P; ++q)
+    for (int c = 0; c < 3; ++c) {
+      // d b_q / d T_q = h k_q (the coupling's right-hand side), so d dv / d T_q = A^-1 h k_q e;
+      // x_p = x0 + alpha h dv_p and v_p = dv_p then give R (see the header).
+      const double scale = h * (ah * proxies_[q].stiffness + proxies_[q].damping);
+      const int row = 3 * (nf + q) + c;
+      Eigen::VectorXd& x = response_[3 * q + c];
+      unit_[row] = 1.0;
+      const SolveStatus st = solver_->resolve(A_, unit_.data(), x.data());
+      unit_[row] = 0.0;
+      if (st != SolveStatus::Ok || !x.allFinite()) {
+        x.setZero();
+        return false;
+      }
+      for (int p = 0; p < P; ++p) R[p * P + q].col(c) = scale * x.segment<3>(3 * (nf + p));
+    }
+  return true;
+}
+
 Integrator::Attempt Integrator::single_step(ClothState& s, double h) {
   auto t0 = Clock::now();
+  last_h_ = h;
   JacobianMode mode = cfg_.jacobian;
   if (!assemble(s, h, mode)) {
     ++events_.non_finite;

@@ -118,6 +118,17 @@ class Integrator {
   std::vector<PointSpring>& point_springs() { return springs_; }
   void set_contacts(StepContacts* c) { contacts_ = c; }
 
+  /// The proxies' response over the last accepted step, R_pq = h (alpha h k_q + c_q) [A^-1]_pq
+  /// with the step's own matrix (eq. 9, the contacts as solved; a re-solve with the factor or
+  /// preconditioner the step left). The coupling force on finger p, F_p = k_p (x_p - T_p) +
+  /// c_p (v_p - V_p), then moves with the targets T_q and their velocities V_q as
+  ///   dF_p / dT_q = k_p (R_pq - delta_pq I),   dF_p / dV_q = c_p (R_pq - delta_pq I),
+  /// and the proxy's end position as dx_p / dT_q = R_pq alpha h k_q / (alpha h k_q + c_q).
+  /// The multirate path renders the fingertips from it between global steps. `R` gets
+  /// proxies^2 blocks, row-major (R[p * proxies + q]). False if a solve failed. Allocates on
+  /// its first call only.
+  bool proxy_response(std::vector<Mat3>& R);
+
   const IntegratorEvents& events() const { return events_; }
   const StepTiming& last_timing() const { return timing_; }
   const IntegratorConfig& config() const { return cfg_; }
@@ -168,6 +179,9 @@ class Integrator {
   std::vector<Vec3> x_before_;   // positions at the start of the previous step
   bool have_before_ = false, blown_up_ = false;
   double alpha_ = 1.0;  // alpha in use: cfg_.alpha, or 1 from the first explosion on
+  double last_h_ = 0.0; // the last (sub)step solved
+  std::vector<Eigen::VectorXd> response_;  // proxy_response(): A^-1 e per proxy dof (warm starts)
+  Eigen::VectorXd unit_;
 };
 
 }  // namespace hapticloth::cloth

@@ -21,6 +21,9 @@ class LinearSolver {
   virtual void analyze(const SymCsr& A) = 0;
   /// Solves A x = b. On entry x holds a starting guess (iterative solvers use it).
   virtual SolveStatus solve(const SymCsr& A, const double* b, double* x) = 0;
+  /// Solves again with the matrix of the last solve(), unchanged since: a direct solver reuses
+  /// its factor, an iterative one its copy of the matrix and its preconditioner.
+  virtual SolveStatus resolve(const SymCsr& A, const double* b, double* x) { return solve(A, b, x); }
   /// Iterations of the last solve (1 for a direct solve).
   int iterations() const { return iterations_; }
   /// Relative residual |b - A x| / |b| of the last solve (iterative solvers).

@@ -122,6 +122,18 @@ class CholmodSolver final : public LinearSolver {
       factored_ = false;
       return SolveStatus::NumericalError;
     }
+    return substitute(b, x);
+  }
+
+  SolveStatus resolve(const SymCsr& A, const double* b, double* x) override {
+    if (!factored_) return solve(A, b, x);
+    iterations_ = 1;
+    return substitute(b, x);
+  }
+
+ private:
+  // x from the factor of the last solve.
+  SolveStatus substitute(const double* b, double* x) {
     for (int i = 0; i < n_; ++i) pb_[i] = b[perm_[i]];
     if (!L_->is_super && L_->is_ll) {
       solve_simplicial_ll(pb_.data());
@@ -142,7 +154,6 @@ class CholmodSolver final : public LinearSolver {
     return SolveStatus::Ok;
   }
 
- private:
   // L L^T y = b in place, on the simplicial factor (columns with the diagonal first).
   void solve_simplicial_ll(double* y) const {
     const int* Lp = static_cast<const int*>(L_->p);

@@ -193,15 +193,30 @@ class PcgSolver final : public LinearSolver {
   }
 
   SolveStatus solve(const SymCsr& A, const double* b, double* x) override {
-    return opt_.single_precision_matrix ? run(mf_, A, b, x) : run(md_, A, b, x);
+    return opt_.single_precision_matrix ? run(mf_, A, b, x, true) : run(md_, A, b, x, true);
+  }
+  // The matrix copy and the preconditioner of the last solve serve again.
+  SolveStatus resolve(const SymCsr& A, const double* b, double* x) override {
+    if (!prepared_) return solve(A, b, x);
+    return opt_.single_precision_matrix ? run(mf_, A, b, x, false) : run(md_, A, b, x, false);
   }
 
  private:
   template <class T>
-  SolveStatus run(Bsr<T>& M, const SymCsr& A, const double* b, double* x) {
+  SolveStatus run(Bsr<T>& M, const SymCsr& A, const double* b, double* x, bool load) {
     iterations_ = 0;
     residual_ = 0.0;
     const int n = n_, nb = n_ / 3;
+    if (load && !prepare(M, A)) return SolveStatus::NotPositiveDefinite;
+    return iterate(M, b, x, n, nb);
+  }
+
+  // The matrix copy, the block-Jacobi inverses and the hub block. False if a diagonal block or
+  // the hub block is not positive definite.
+  template <class T>
+  bool prepare(Bsr<T>& M, const SymCsr& A) {
+    prepared_ = false;
+    const int nb = n_ / 3;
     M.load(A);
     // Block-Jacobi preconditioner: the inverse of each 3x3 diagonal block (from the double
     // values, by cofactors).
@@ -215,7 +230,7 @@ class PcgSolver final : public LinearSolver {
       const double a20 = r0[2 * len], a21 = r0[2 * len + 1], a22 = r0[2 * len + 2];
       const double c00 = a11 * a22 - a12 * a21, c01 = a02 * a21 - a01 * a22, c02 = a01 * a12 - a02 * a11;
       const double det = a00 * c00 + a10 * c01 + a20 * c02;
-      if (!(det > 0.0) || !std::isfinite(det) || !(a00 > 0.0)) return SolveStatus::NotPositiveDefinite;
+      if (!(det > 0.0) || !std::isfinite(det) || !(a00 > 0.0)) return false;
       const double id = 1.0 / det;
       double* m = inv_.data() + 9 * br;
       m[0] = c00 * id;
@@ -228,7 +243,13 @@ class PcgSolver final : public LinearSolver {
       m[7] = (a01 * a20 - a00 * a21) * id;
       m[8] = (a00 * a11 - a01 * a10) * id;
     }
-    if (!hubs_.empty() && !factor_cluster(M, A)) return SolveStatus::NotPositiveDefinite;
+    if (!hubs_.empty() && !factor_cluster(M, A)) return false;
+    prepared_ = true;
+    return true;
+  }
+
+  template <class T>
+  SolveStatus iterate(const Bsr<T>& M, const double* b, double* x, int n, int nb) {
     double bn2 = 0.0;
     for (int i = 0; i < n; ++i) bn2 += b[i] * b[i];
     if (!std::isfinite(bn2)) return SolveStatus::NumericalError;
@@ -388,6 +409,7 @@ class PcgSolver final : public LinearSolver {
   std::array<double, 3 * kMaxCluster> cz_{};
 
   PcgOptions opt_;
+  bool prepared_ = false;
   int n_ = 0;
   std::vector<double> r_, z_, p_, q_, x0_, inv_;
   Bsr<double> md_;

@@ -384,6 +384,7 @@ void FingertipContact::end_step(const cloth::ClothState& s) {
     r = ProxyResult{};
     r.proxy = P.x;
     r.target = P.target;
+    r.target_velocity = P.target_velocity;
     if (!valid_[f]) {  // no device sample this step
       last_disp_[f].setZero();
       continue;

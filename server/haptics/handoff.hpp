@@ -20,6 +20,7 @@ struct ProxyResult {
   bool valid = false;            ///< the step had a device sample for this finger
   Vec3 proxy = Vec3::Zero();     ///< proxy sphere centre, m
   Vec3 target = Vec3::Zero();    ///< the device fingertip the coupling pulled towards, m
+  Vec3 target_velocity = Vec3::Zero();  ///< its velocity, m/s
   Vec3 force = Vec3::Zero();     ///< force on the user's finger, N: minus the cloth's contact forces
   Vec3 normal = Vec3::Zero();    ///< direction of the summed normal contact forces (towards the finger)
   Vec3 contact = Vec3::Zero();   ///< normal-force-weighted centre of the contacts, m
@@ -40,6 +41,10 @@ struct ClothSnapshot {
   std::vector<Vec3> x, v, n;  ///< vertex positions (m), velocities (m/s), unit normals
   std::array<bool, kMaxFingers> near{};  ///< the fingertip is within reach of the cloth
   std::array<ProxyResult, kMaxFingers> proxy{};  ///< direct coupling: the step's proxies
+  /// The multirate path's local model (cloth::Integrator::proxy_response): R[p * kMaxFingers + q],
+  /// how finger p's force moves with finger q's fingertip until the next global step.
+  bool has_response = false;
+  std::array<Eigen::Matrix3d, kMaxFingers * kMaxFingers> response{};
 
   void resize(int vertices) {
     x.assign(vertices, Vec3::Zero());
@@ -55,6 +60,8 @@ struct ClothSnapshot {
     std::copy(o.n.begin(), o.n.end(), n.begin());
     near = o.near;
     proxy = o.proxy;
+    has_response = o.has_response;
+    response = o.response;
   }
 };
 

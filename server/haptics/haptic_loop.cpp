@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "haptics/proxy_contact.hpp"
+#include "haptics/response_contact.hpp"
 
 namespace hapticloth::haptics {
 
@@ -53,6 +54,11 @@ void HapticLoop::absent(FingerReport& r, const Vec3& centre, const Vec3& velocit
   r.impacts = impacts;
 }
 
+void HapticLoop::enable_response() {
+  response_ = std::make_unique<ResponseContact>(k_, fp_.damping, fp_.friction);
+  contact_ = response_.get();
+}
+
 void HapticLoop::tick(double now) noexcept {
   ++tick_;
   const double tick_dt = last_now_ >= 0.0 ? std::clamp(now - last_now_, 0.0, 0.05) : 0.0;
@@ -69,14 +75,19 @@ void HapticLoop::tick(double now) noexcept {
   // sample the device's position means nothing (a UDP rig not yet connected reads as the
   // device origin, which may be inside the cloth), and after a watchdog trip it is unknown.
   const bool present = gate_.fresh(now, state_.received_time);
+  std::array<Fingertip, kMaxFingers> tips{};
+  std::array<bool, kMaxFingers> here{};
   for (int f = 0; f < fingers_; ++f) {
-    const Vec3 c = map_.origin + map_.R * state_.finger[f].position;
-    const Vec3 vc = map_.R * state_.finger[f].velocity;
+    tips[f] = Fingertip{f, map_.origin + map_.R * state_.finger[f].position, map_.R * state_.finger[f].velocity};
+    here[f] = present;
+  }
+  contact_->prepare(s, tips, here, fingers_);
+  for (int f = 0; f < fingers_; ++f) {
     if (present) {
-      contact_->touch(s, now, tick_dt, Fingertip{f, c, vc}, report_.finger[f]);
+      contact_->touch(s, now, tick_dt, tips[f], report_.finger[f]);
     } else {
       if (report_.finger[f].present) contact_->release(f);
-      absent(report_.finger[f], c, vc);
+      absent(report_.finger[f], tips[f].centre, tips[f].velocity);
     }
     report_.finger[f].present = present;
     contact = contact || report_.finger[f].in_contact;

@@ -52,6 +52,9 @@ class HapticLoop {
   void enable_local_patch(const std::vector<Vec3>& rest, const std::vector<char>& pinned,
                           const PatchParams& p);
   bool local_patch() const { return patch_ != nullptr; }
+  /// The multirate path's response model (ResponseContact): the fingers rendered from the
+  /// global step's linear response until the next step.
+  void enable_response();
   std::uint64_t patch_rebuilds() const { return patch_ ? patch_->rebuilds() : 0; }
   /// Patch builds whose springs were softened to stay stable (PatchParams::max_substeps).
   std::uint64_t patch_softened() const { return patch_ ? patch_->softened() : 0; }
@@ -85,7 +88,8 @@ class HapticLoop {
   HapticReport report_;
   std::unique_ptr<SurfaceContact> direct_;
   std::unique_ptr<PatchContact> patch_;
-  SurfaceContact* contact_;  // direct_ or patch_
+  std::unique_ptr<SurfaceContact> response_;
+  SurfaceContact* contact_;  // direct_, patch_ or response_
   double last_now_ = -1.0;
   std::uint64_t tick_ = 0, device_errors_ = 0, contact_ticks_ = 0, np_skipped_ = 0;
 };

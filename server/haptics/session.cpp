@@ -59,11 +59,13 @@ Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& 
   gate_ = std::make_unique<devices::SafetyGate>(dev_.info(), sc_.gate);
   snap_ = std::make_unique<TripleBuffer<ClothSnapshot>>(sized_snapshot(model.num_vertices()));
   rep_ = std::make_unique<TripleBuffer<HapticReport>>(HapticReport{});
+  const Rendering mode = rendering(sc_.local_patch, sc_.local_model);
   sim_ = std::make_unique<SimWorker>(model, cfg, std::move(solver), start, dev_.info().fingers,
-                                     sc_.finger, sc_.coupling, sc_.local_patch, *snap_, *rep_);
+                                     sc_.finger, sc_.coupling, mode, *snap_, *rep_);
   loop_ = std::make_unique<HapticLoop>(tris_, model.num_vertices(), dev_, *gate_, sc_.finger,
                                        sc_.mapping, *snap_, *rep_);
-  if (sc_.local_patch) {
+  if (mode == Rendering::Response) loop_->enable_response();
+  if (mode == Rendering::Patch) {
     PatchParams p = sc_.patch;
     p.areal_density = model.material.areal_density;
     p.stiffness = 0.5 * (model.material.weft.B[0][1] + model.material.warp.B[0][1]);

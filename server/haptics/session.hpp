@@ -30,6 +30,8 @@ struct SessionConfig {
   /// Local refinement (4.2): a subdivided patch per fingertip at the haptic rate. The server
   /// turns it on when the global step does not fit in the haptic period.
   bool local_patch = false;
+  /// The local model of the multirate path (local_patch true).
+  LocalModel local_model = LocalModel::Response;
   PatchParams patch;            ///< stiffness and density are taken from the material
   double spin_lead = 150e-6;    ///< s: the haptic thread sleeps to this before each deadline, then spins
 };

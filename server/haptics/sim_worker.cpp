@@ -48,10 +48,10 @@ double mean_edge(const cloth::ClothModel& m, const std::vector<std::array<int, 3
 SimWorker::SimWorker(const cloth::ClothModel& model, const cloth::IntegratorConfig& cfg,
                      std::unique_ptr<cloth::LinearSolver> solver, const cloth::ClothState& start,
                      int fingers, const FingerParams& finger, const CouplingParams& coupling,
-                     bool local_patch, TripleBuffer<ClothSnapshot>& to_haptics,
+                     Rendering mode, TripleBuffer<ClothSnapshot>& to_haptics,
                      TripleBuffer<HapticReport>& from_haptics)
     : model_(model),
-      integ_(model, with_proxies(cfg, local_patch ? 0 : fingers), std::move(solver)),
+      integ_(model, with_proxies(cfg, mode == Rendering::Patch ? 0 : fingers), std::move(solver)),
       s_(start),
       fingers_(fingers),
       fp_(finger),
@@ -61,7 +61,8 @@ SimWorker::SimWorker(const cloth::ClothModel& model, const cloth::IntegratorConf
       tris_(triangles_of(model)) {
   kernel_r_ = cp_.kernel_radius > 0.0 ? cp_.kernel_radius
                                       : std::max(fp_.radius, 2.0 * mean_edge(model_, tris_));
-  if (local_patch) {
+  response_on_ = mode == Rendering::Response;
+  if (mode == Rendering::Patch) {
     kernel_ = std::make_unique<KernelCoupling>(model_, tris_, fingers_, kernel_r_, cp_.finger_mass);
   } else {
     tips_ = std::make_unique<FingertipContact>(model_, tris_, fingers_,
@@ -138,6 +139,16 @@ void SimWorker::publish(double now) {
   out_.publish();
 }
 
+// The multirate path's local model: the step's response to the fingertips (eq. 9 linearized),
+// for the haptic loop to render from until the next step.
+void SimWorker::hand_over_response() {
+  ClothSnapshot& snap = out_.back();
+  snap.has_response = integ_.proxy_response(response_);
+  for (int p = 0; p < fingers_; ++p)
+    for (int q = 0; q < fingers_; ++q)
+      snap.response[p * kMaxFingers + q] = snap.has_response ? response_[p * fingers_ + q] : cloth::Mat3::Zero();
+}
+
 void SimWorker::step(double now) {
   const auto t0 = std::chrono::steady_clock::now();
   in_.acquire();
@@ -148,6 +159,7 @@ void SimWorker::step(double now) {
     kernel_->apply(r, s_, integ_);
   integ_.step(s_);
   if (tips_) tips_->end_step(s_);
+  if (response_on_) hand_over_response();
   ++steps_;
   publish(now);
   step_us_.add(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());

@@ -13,6 +13,7 @@
 #include "haptics/haptic_loop.hpp"
 #include "haptics/kernel_coupling.hpp"
 #include "haptics/stats.hpp"
+#include "haptics/surface_contact.hpp"
 #include "haptics/triple_buffer.hpp"
 
 namespace hapticloth::haptics {
@@ -30,12 +31,13 @@ struct CouplingParams {
 
 class SimWorker {
  public:
-  /// `local_patch`: the haptic loop renders from local patches (KernelCoupling here); else the
-  /// fingertips are proxies solved with the cloth (direct coupling).
+  /// `mode`: Direct and Response solve the fingertip proxies with the cloth (Response also
+  /// hands the haptic loop the step's response, cloth::Integrator::proxy_response); Patch
+  /// spreads the forces of the haptic loop's local patches over the cloth (KernelCoupling).
   SimWorker(const cloth::ClothModel& model, const cloth::IntegratorConfig& cfg,
             std::unique_ptr<cloth::LinearSolver> solver, const cloth::ClothState& start,
             int fingers, const FingerParams& finger, const CouplingParams& coupling,
-            bool local_patch, TripleBuffer<ClothSnapshot>& to_haptics,
+            Rendering mode, TripleBuffer<ClothSnapshot>& to_haptics,
             TripleBuffer<HapticReport>& from_haptics);
 
   /// One global step at loop time `now`; publishes the new snapshot.
@@ -60,6 +62,7 @@ class SimWorker {
   std::array<FingerTarget, kMaxFingers> fingertip_targets(const HapticReport& r, double now) const;
   void mark_near(const HapticReport& r);
   void vertex_normals();
+  void hand_over_response();
 
   const cloth::ClothModel& model_;
   cloth::Integrator integ_;
@@ -73,6 +76,8 @@ class SimWorker {
   std::vector<std::array<int, 3>> tris_;
   std::unique_ptr<FingertipContact> tips_;
   std::unique_ptr<KernelCoupling> kernel_;
+  bool response_on_ = false;
+  std::vector<cloth::Mat3> response_;
   std::vector<Vec3> normals_;
   ClothSnapshot mine_;
   Histogram step_us_;

@@ -3,9 +3,28 @@
 // PatchContact: the local refinement of section 4.2).
 #pragma once
 
+#include <array>
+
 #include "haptics/handoff.hpp"
 
 namespace hapticloth::haptics {
+
+/// The local model of the multirate path (section 4.2: the global step is longer than the
+/// haptic period). Response: the fingertip proxies are solved with the whole cloth at the
+/// global step, which also hands over its linear response to the fingertips
+/// (cloth::Integrator::proxy_response); the haptic loop renders from it between steps, both
+/// fingers together. Patch: the paper's refined spring-mass patch per fingertip (4.2), with
+/// the forces spread back on the global cloth by a kernel (4.3).
+enum class LocalModel { Response, Patch };
+inline const char* to_string(LocalModel m) { return m == LocalModel::Response ? "response" : "patch"; }
+
+/// How the simulation and the haptic loop share the fingertips: Direct (the proxies solved with
+/// the cloth at every haptic tick's step), or the multirate path with one of its local models.
+enum class Rendering { Direct, Response, Patch };
+inline Rendering rendering(bool local_patch, LocalModel m) {
+  if (!local_patch) return Rendering::Direct;
+  return m == LocalModel::Response ? Rendering::Response : Rendering::Patch;
+}
 
 /// The fingertip of one finger for one tick, in the scene frame.
 struct Fingertip {
@@ -22,6 +41,12 @@ class SurfaceContact {
   /// Real-time safe: no allocation, no lock.
   virtual void touch(const ClothSnapshot& s, double now, double tick_dt, const Fingertip& tip,
                      FingerReport& out) noexcept = 0;
+  /// Before the fingers' touch() of a tick: every finger's fingertip (`present[f]` false: no
+  /// device sample), for models that couple the fingers (a pinch).
+  virtual void prepare(const ClothSnapshot& s, const std::array<Fingertip, kMaxFingers>& tips,
+                       const std::array<bool, kMaxFingers>& present, int fingers) noexcept {
+    (void)s, (void)tips, (void)present, (void)fingers;
+  }
   /// The finger left (no fresh device sample): forget its contact state, so that it starts
   /// afresh where the device puts it when it comes back.
   virtual void release(int finger) noexcept { (void)finger; }

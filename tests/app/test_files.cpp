@@ -355,7 +355,13 @@ TEST_F(FilesTest, SceneKernelKeyWithDirectCoupling) {
   expect_config_error(
       [&] { scene(kScene + "\n[haptics]\nlocal_patch = \"off\"\ncontact_stiffness = -1\n"); },
       {path, at_line(19), "haptics.contact_stiffness", "must be > 0"});
-  EXPECT_NO_THROW(scene(kScene + "\n[haptics]\nlocal_patch = \"on\"\nkernel_radius = 0.02\n"));
+  EXPECT_NO_THROW(scene(kScene + "\n[haptics]\nlocal_patch = \"on\"\nlocal_model = \"patch\"\nkernel_radius = 0.02\n"));
+  expect_config_error(
+      [&] { scene(kScene + "\n[haptics]\nlocal_patch = \"on\"\nkernel_radius = 0.02\n"); },
+      {path, at_line(19), "haptics.kernel_radius", "local_model = \"patch\""});
+  expect_config_error(
+      [&] { scene(kScene + "\n[haptics]\nlocal_model = \"springs\"\n"); },
+      {path, at_line(18), "haptics.local_model", "\"response\" or \"patch\""});
 }
 
 TEST_F(FilesTest, SceneUnknownDeviceDriver) {

@@ -370,3 +370,64 @@ INSTANTIATE_TEST_SUITE_P(
     ViscosityAndMode, FusedAssembly,
     ::testing::Combine(::testing::Values(0.0, 0.05),
                        ::testing::Values(cloth::JacobianMode::Spd, cloth::JacobianMode::Exact)));
+
+// The proxies' response (the multirate path's local model) is the derivative of the step's
+// solution with respect to the targets: two fingertips pinch a drum through stiff point
+// springs; moving one target by 0.1 mm and stepping again from the same state moves the proxies
+// by R alpha h k / (alpha h k + c) times that, the other proxy too (through the cloth), to the
+// direct solver's precision.
+TEST(Integrator, ProxyResponseIsTheStepsDerivativeInTheTargets) {
+  const auto m = drum(test::denim(), 8);
+  cloth::IntegratorConfig cfg;
+  cfg.dt = 0.02;
+  cfg.proxies = 2;
+  cfg.gravity.setZero();
+  const cloth::ClothState s0 = cloth::rest_state(m);
+  const Vec3 centre = m.rest_positions[m.num_vertices() / 2];
+  const Vec3 n = Vec3::UnitZ();
+  auto step_with = [&](const Vec3& dt0, std::vector<cloth::Mat3>* M) {
+    cloth::Integrator integ(m, cfg, cloth::make_cholmod_solver());
+    for (int f = 0; f < 2; ++f) {
+      auto& p = integ.proxies()[f];
+      p.x = centre + (f ? -0.008 : 0.008) * n;
+      p.target = p.x + (f ? 0.002 : -0.002) * n + (f ? Vec3::Zero() : dt0);
+      p.stiffness = 800.0;
+      p.damping = 1.0;
+    }
+    for (int t = 0; t < m.num_triangles(); ++t) {
+      const auto& e = m.elements[t];
+      if ((m.rest_positions[e.v[0]] - centre).norm() > 0.06) continue;
+      for (int f = 0; f < 2; ++f) {
+        cloth::PointSpring sp;
+        sp.tri = t;
+        sp.b[0] = sp.b[1] = sp.b[2] = 1.0 / 3.0;
+        sp.proxy = f;
+        sp.f = (f ? -0.05 : 0.05) * n;
+        sp.K = 2000.0 * n * n.transpose() + 500.0 * (cloth::Mat3::Identity() - n * n.transpose());
+        integ.point_springs().push_back(sp);
+      }
+    }
+    cloth::ClothState s = s0;
+    EXPECT_EQ(integ.step(s), cloth::StepOutcome::Accepted);
+    if (M) EXPECT_TRUE(integ.proxy_response(*M));
+    return std::array<Vec3, 2>{integ.proxies()[0].x, integ.proxies()[1].x};
+  };
+  std::vector<cloth::Mat3> R;
+  const auto base = step_with(Vec3::Zero(), &R);
+  ASSERT_EQ(R.size(), 4u);
+  const double ahk = cfg.dt * 800.0;
+  std::vector<cloth::Mat3> M;  // dx_p / dT_q
+  for (const auto& r : R) M.push_back(r * ahk / (ahk + 1.0));
+  for (int c = 0; c < 3; ++c) {
+    const double d = 1e-4;
+    const auto moved = step_with(d * Vec3::Unit(c), nullptr);
+    for (int p = 0; p < 2; ++p) {
+      const Vec3 fd = (moved[p] - base[p]) / d;
+      EXPECT_LE((fd - M[p * 2 + 0].col(c)).norm(), 1e-6 * (1.0 + M[p * 2 + 0].col(c).norm()))
+          << "proxy " << p << ", target 0 axis " << c << ": " << fd.transpose() << " vs "
+          << M[p * 2 + 0].col(c).transpose();
+    }
+  }
+  // Pushing finger 0 into the drum moves finger 1 (on the other side) along: the cloth couples them.
+  EXPECT_GT(M[1 * 2 + 0](2, 2), 0.05);
+}

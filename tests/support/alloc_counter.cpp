@@ -21,7 +21,10 @@ std::uint64_t allocation_count() { return g_count.load(std::memory_order_relaxed
 }  // namespace hapticloth::test
 
 // Replacing the C allocation functions catches C libraries (CHOLMOD) too; libstdc++'s
-// operator new calls malloc, so C++ allocations are counted as well.
+// operator new calls malloc, so C++ allocations are counted as well. Under AddressSanitizer or
+// ThreadSanitizer (tools/sanitize) the sanitizer owns the allocator: no replacement, and the
+// count stays 0 (the allocation checks are the normal build's).
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
 extern "C" void* malloc(size_t n) {
   count();
   return __libc_malloc(n);
@@ -47,3 +50,4 @@ extern "C" void* memalign(size_t align, size_t n) {
   count();
   return __libc_memalign(align, n);
 }
+#endif

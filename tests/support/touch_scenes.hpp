@@ -75,7 +75,19 @@ struct DrumSpec {
   double density = 0.1;          ///< kg/m^2
   double speed = 1e-3;           ///< m/s, the device's descent (quasi-static)
   std::string solver = "pcg";
+  /// s; longer than the haptic period: the multirate path with `model`
+  double global_dt = 1e-3;
+  haptics::LocalModel model = haptics::LocalModel::Response;
 };
+
+/// The session and integrator settings of a touch scene at global step `dt`: above the haptic
+/// period the multirate path with local model `m`.
+inline void set_global_step(haptics::SessionConfig& sc, cloth::IntegratorConfig& ic, double dt,
+                            haptics::LocalModel m) {
+  ic.dt = dt;
+  sc.local_patch = dt * sc.haptic_rate > 1.0 + 1e-9;
+  sc.local_model = m;
+}
 
 struct DrumPoint {
   double depth = 0.0;      ///< m, the proxy sphere's pole below the rim plane
@@ -123,6 +135,7 @@ inline DrumResult press_drum(const DrumSpec& spec) {
   tr.add(0, t_end, Vec3(0, 0, bottom));
   tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));  // parked away
   haptics::SessionConfig sc = touch_session(0.0);
+  set_global_step(sc, ic, spec.global_dt, spec.model);
   TouchRig rig(std::move(model), std::move(tr), sc, ic, start, spec.solver);
   DrumResult res;
   res.triangles = rig.model.num_triangles();
@@ -163,6 +176,8 @@ struct PinchSpec {
   double friction = 0.6;
   double hold = 6.0;          ///< s
   std::string solver = "cholmod";
+  double global_dt = 1e-3;    ///< s (see DrumSpec)
+  haptics::LocalModel model = haptics::LocalModel::Response;
 };
 
 struct PinchResult {
@@ -201,6 +216,7 @@ inline PinchResult pinch_handkerchief(const PinchSpec& spec) {
   tr.add(1, 0.05, at - Vec3(0, 0, r - s));
   tr.add(1, spec.hold, at - Vec3(0, 0, r - s));
   haptics::SessionConfig sc = touch_session(spec.friction);
+  set_global_step(sc, ic, spec.global_dt, spec.model);
   TouchRig rig(std::move(model), std::move(tr), sc, ic, start, spec.solver);
   int centre = 0;
   for (int i = 0; i < rig.model.num_vertices(); ++i)
@@ -217,9 +233,17 @@ inline PinchResult pinch_handkerchief(const PinchSpec& spec) {
     return p;
   };
   Vec3 p_prev = momentum(start);
+  std::uint64_t steps = 0;
   rig.session->run_stepped(spec.hold, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker& sim) {
     // Newton's third law, step by step: what the cloth's momentum says it got from the fingers
     // against what the fingers render (before the device's safety gate).
+    const auto& rep = h.last_report();
+    if (rep.time >= spec.hold - 1.0) {
+      sum += -(rep.finger[0].force.z() + rep.finger[1].force.z());
+      ++n;
+    }
+    if (sim.steps() == steps) return;
+    steps = sim.steps();
     const cloth::ClothState& st = sim.state();
     const Vec3 p_now = momentum(st);
     Vec3 drag = Vec3::Zero();
@@ -229,10 +253,6 @@ inline PinchResult pinch_handkerchief(const PinchSpec& spec) {
     Vec3 rendered = Vec3::Zero();
     for (int f = 0; f < 2; ++f) rendered += sim.last_snapshot().proxy[f].force;
     res.third_law = std::max(res.third_law, (from_fingers + rendered).norm());
-    const auto& rep = h.last_report();
-    if (rep.time < spec.hold - 1.0) return;
-    sum += -(rep.finger[0].force.z() + rep.finger[1].force.z());
-    ++n;
   });
   res.carried = n ? sum / n : 0.0;
   res.centre_offset = (rig.session->sim().state().x[centre] - at).norm();
