@@ -188,8 +188,8 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   std::string stopped;
   if (opt.stop && opt.stop->load()) {
     std::ostringstream os;
-    os << "by " << (stop_signal() == SIGTERM ? "SIGTERM" : "SIGINT") << " after " << std::setprecision(4)
-       << session.report().sim_time << " s of " << duration << " s";
+    os << "by " << (stop_signal() == SIGTERM ? "SIGTERM" : "SIGINT") << " after " << std::fixed
+       << std::setprecision(3) << session.report().sim_time << " s of " << duration << " s";
     stopped = os.str();
     if (hub) hub->post_event("stopping", "server stops on a signal: " + stopped);
   }

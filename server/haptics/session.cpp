@@ -101,6 +101,7 @@ void Session::account_tick() {
 void Session::run_realtime(double seconds) {
   start();
   std::atomic<bool> stop_flag{false};
+  long elapsed_ticks = 0;  // written by the haptic thread, read after it joined
   r_.haptic = LoopStats{};
   // Real-time scheduling when permitted; a clean fallback (with the reason) when not.
   r_.memory_locked = sc_.try_realtime && mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
@@ -148,6 +149,14 @@ void Session::run_realtime(double seconds) {
       double woke = mono_now();
       while (woke < deadline) woke = mono_now();
       r_.haptic.period_error_us.add(std::abs(woke - deadline) * 1e6);
+      // A wake-up more than a period late (the kernel now and then wakes a thread milliseconds
+      // late): the ticks due meanwhile are skipped, counted as missed, not run in a burst.
+      const long due = static_cast<long>((woke - t_start) / period);
+      if (due > k) {
+        r_.haptic.missed_deadlines += static_cast<std::uint64_t>(due - k);
+        k = std::min(due, ticks - 1);
+      }
+      elapsed_ticks = k + 1;
       loop_->tick(woke - t_start);
       account_tick();
       for (auto* o : observers_)
@@ -157,7 +166,7 @@ void Session::run_realtime(double seconds) {
       const double done = mono_now();
       r_.haptic.compute_us.add((done - woke) * 1e6);
       ++r_.haptic.ticks;
-      if (done > deadline + period) ++r_.haptic.missed_deadlines;
+      if (done > t_start + (k + 1) * period) ++r_.haptic.missed_deadlines;  // overran its own period
     }
     // The end (of the run, or a stop signal): zero force through the gate, at the loop rate.
     const double t_end = mono_now();
@@ -170,7 +179,7 @@ void Session::run_realtime(double seconds) {
   haptic_thread.join();
   stop_flag = true;
   sim_thread.join();
-  r_.sim_time = static_cast<double>(r_.haptic.ticks) * period;
+  r_.sim_time = static_cast<double>(elapsed_ticks) * period;
   r_.scheduling_note = note;
   if (r_.memory_locked) munlockall();
   stop();

@@ -324,8 +324,8 @@ json accuracy(const AccuracyOptions& opt) {
     json runs = json::array();
     std::vector<RunConfig> cfgs;
     // dt <= the haptic period: direct coupling (what the server runs when the step fits);
-    // longer steps: the local patch (4.2), and for comparison the direct coupling, which the
-    // server does not run at such steps (it shortens dt to the haptic period instead).
+    // longer steps: the multirate path with each local model (4.2), and for comparison the
+    // direct coupling, which the server does not run at such steps (it shortens dt instead).
     for (double dt : dts) {
       if (dt > 1e-3) continue;
       for (double a : quick ? std::vector<double>{1.0} : std::vector<double>{0.5, 1.0}) {
@@ -337,7 +337,9 @@ json accuracy(const AccuracyOptions& opt) {
     for (double dt : dts) {
       if (dt <= 1e-3) continue;
       RunConfig c = defaults;
-      c.dt = dt, c.local_patch = true, c.sweep = "local-patch";
+      c.dt = dt, c.local_patch = true, c.sweep = "local-response";
+      cfgs.push_back(c);
+      c.local_model = haptics::LocalModel::Patch, c.sweep = "local-patch";
       cfgs.push_back(c);
       c.local_patch = false, c.sweep = "direct-long-step";
       cfgs.push_back(c);

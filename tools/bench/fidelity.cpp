@@ -5,7 +5,9 @@
 //   handkerchief: a free cloth pinched from either side and held 6 s: the vertical sum of the
 //     rendered forces against its weight over the last second, where its centre ended, how deep
 //     any cloth point got into a fingertip, and Newton's third law from the cloth's momentum;
-//     across meshes, squeezes, friction and both solvers, and on both sides of 2 mu N = m g.
+//     across meshes, squeezes, friction and both solvers, and on both sides of 2 mu N = m g;
+//   multirate: the drum (1 mm mesh) and the handkerchief (20 quads) with the global step at
+//     10, 20 and 40 ms, through each local model (response, patch).
 #include <chrono>
 #include <iostream>
 
@@ -23,14 +25,19 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-json drum_row(double centre_edge, const std::string& solver, bool verbose) {
+json drum_row(double centre_edge, const std::string& solver, bool verbose, double global_dt = 1e-3,
+              haptics::LocalModel model = haptics::LocalModel::Response) {
   test::DrumSpec spec;
   spec.centre_edge = centre_edge;
   spec.solver = solver;
+  spec.global_dt = global_dt;
+  spec.model = model;
   const auto t0 = std::chrono::steady_clock::now();
   const test::DrumResult r = test::press_drum(spec);
   json j = {{"centre_edge_mm", centre_edge * 1e3},
             {"solver", solver},
+            {"global_dt_ms", global_dt * 1e3},
+            {"local_model", global_dt > 1e-3 ? haptics::to_string(model) : "direct"},
             {"triangles", r.triangles},
             {"onset_depth_mm", r.onset_depth * 1e3},
             {"max_penetration_mm", r.max_penetration * 1e3},
@@ -50,6 +57,8 @@ json pinch_row(const test::PinchSpec& spec, bool verbose) {
   const auto t0 = std::chrono::steady_clock::now();
   const test::PinchResult r = test::pinch_handkerchief(spec);
   json j = {{"quads", spec.quads},
+            {"global_dt_ms", spec.global_dt * 1e3},
+            {"local_model", spec.global_dt > 1e-3 ? haptics::to_string(spec.model) : "direct"},
             {"squeeze_mm", spec.squeeze * 1e3},
             {"friction", spec.friction},
             {"solver", spec.solver},
@@ -89,6 +98,17 @@ json fidelity(const FidelityOptions& opt) {
       s.friction = c.mu;
       s.solver = solver;
       out["handkerchief"].push_back(pinch_row(s, opt.verbose));
+    }
+  // The multirate path: each local model at long global steps.
+  for (double dt : opt.quick ? std::vector<double>{0.02} : std::vector<double>{0.01, 0.02, 0.04})
+    for (auto model : {haptics::LocalModel::Response, haptics::LocalModel::Patch}) {
+      out["multirate"]["drum"].push_back(drum_row(1e-3, "pcg", opt.verbose, dt, model));
+      test::PinchSpec s;
+      s.quads = 20;
+      s.solver = "pcg";
+      s.global_dt = dt;
+      s.model = model;
+      out["multirate"]["handkerchief"].push_back(pinch_row(s, opt.verbose));
     }
   // Both sides of 2 mu N = m g: a light squeeze with little friction lets the cloth slip out.
   for (double mu : {0.02, 0.2}) {

@@ -8,6 +8,7 @@
 //   hapticloth-bench stability [--quick] [--random-steps N] --json [--plot OUT.png]
 //   hapticloth-bench limit [--quick] --json
 //   hapticloth-bench fidelity [--quick] --json
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -79,6 +80,16 @@ int main(int argc, char** argv) {
     return 2;
   }
 
+  // The benchmark's name comes first: say which option or name is wrong (CLI11 would only say
+  // that a subcommand is required).
+  const std::vector<std::string> names{"step", "haptic", "accuracy", "stability", "limit", "fidelity"};
+  if (argc >= 2 && std::string(argv[1]) != "-h" && std::string(argv[1]) != "--help" &&
+      std::find(names.begin(), names.end(), argv[1]) == names.end()) {
+    std::cerr << "hapticloth-bench: " << (argv[1][0] == '-' ? "unknown option " : "unknown benchmark ")
+              << argv[1] << " (the benchmark comes first: step, haptic, accuracy, stability, limit, "
+              << "fidelity, udp, transport; --help)\n";
+    return 2;
+  }
   CLI::App cli{"hapticloth-bench: benchmarks with machine-readable output"};
   cli.require_subcommand(1);
 

@@ -20,7 +20,7 @@ def finite(v):
 def plot_accuracy(j, out):
     scenes = list(j["scenes"].items())
     fig, axes = plt.subplots(1, len(scenes), figsize=(6 * len(scenes), 5))
-    markers = {"dt-alpha": "o", "solver": "s", "resolution": "^", "local-patch": "D",
+    markers = {"dt-alpha": "o", "solver": "s", "resolution": "^", "local-patch": "D", "local-response": "P",
                "direct-long-step": "x"}
     for ax, (name, sc) in zip(axes, scenes):
         key = "force_err_rel" if name != "release" else "pos_err_mm"

@@ -71,7 +71,7 @@ Outcome run(const app::Scene& sc, const cloth::ClothModel& m, const cloth::Cloth
         o.max_kinetic = std::max(o.max_kinetic, cloth::compute_energies(m, s, Vec3::Zero()).kinetic);
         // Direct coupling: the proxy is the fingertip sphere solved with the cloth, checked on
         // every step whether or not it touches (a finger through the cloth touches nothing).
-        // The local patch's proxy is the god-object, on the cloth only while in contact.
+        // The multirate path renders its proxy between steps; it is checked while in contact.
         for (int f = 0; f < h.fingers(); ++f)
           if (rep.finger[f].in_contact || !c.local_patch) {
             const double pen = r - distance_to_cloth(rep.finger[f].proxy, s.x, m);

@@ -1,0 +1,193 @@
+"""No phantom contact from a UDP rig that connects late (issue 14, defect 5): a real-time
+`--device udp` session of the hanging square whose fake rig (tools/fake_rig) starts 2 s after
+the session, with its fingertips 4 cm from the cloth. Before its first packet the device reads
+its origin, which the scene puts in the middle of the hanging cloth; the fingers must be absent
+until then (no contact, no force, nothing pushed into the cloth), so
+
+- a rig that only hovers gets 0 contact ticks and 0 contact samples (JSON summary
+  "contact_ticks", "contact_samples"), and only exactly-zero force packets;
+- a rig that hovers and then descends into the cloth touches it only after it descended (every
+  in-contact haptic tick of the LCM log, and the summary's count, lie after the descent), and its
+  first force packet is exactly zero on every finger;
+- the cloth up to then is exactly the cloth of a reference session whose (mock) fingers never
+  came near it: every cloth state of the LCM log (--cloth-rate 1000: every step) is compared,
+  step by step, with the reference's.
+
+Frames: the scene's [device] origin is the scene point of the device origin and its axes the
+scene directions of the device axes; the cloth hangs from its top edge (y = +0.25 m in the scene)
+in the plane y = 0.25. The positions here are chosen in the scene and mapped into the device
+frame. Network: UDP on 127.0.0.1 only. Every wait is bounded.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import time
+import tomllib
+from types import SimpleNamespace
+
+import pytest
+
+from server_session import (SCENE, Rig, Server, free_port, haptic_samples, read_lcm_log,
+                            write_trajectory)
+
+with SCENE.open("rb") as _f:
+    _scene = tomllib.load(_f)
+ORIGIN = _scene["device"]["origin"]               # scene position of the device origin
+AXES = _scene["device"]["axes"]                   # scene directions of the device x, y, z axes
+RADIUS = _scene["haptics"]["finger_radius"]       # m
+CLOTH_Y = _scene["mesh"]["origin"][1] + _scene["mesh"]["size"][1]  # the pinned top edge's y
+assert _scene["pins"]["edges"] == ["top"] and _scene["mesh"]["plane"] == "xy"
+
+SESSION_S = 5.0     # s of real-time session
+RIG_START_S = 2.0   # s after the session starts
+HOVER = 0.04        # m, fingertip centres from the cloth plane while hovering
+DEPTH = 0.006       # m, finger 0's sphere into the cloth plane after the descent
+
+
+def to_device(p):
+    """Scene point -> device frame: d = A^T (p - origin), A's columns the device axes."""
+    q = [p[i] - ORIGIN[i] for i in range(3)]
+    return tuple(sum(AXES[j][i] * q[i] for i in range(3)) + 0.0 for j in range(3))
+
+
+def fingertip(x, distance, z):
+    """Device-frame position of a fingertip centre `distance` m in front of (< 0: behind) the
+    hanging cloth's plane, at scene height z and scene x."""
+    return to_device((x, CLOTH_Y - distance, z))
+
+
+Z = ORIGIN[2]  # the device origin's height: mid-cloth
+F0_HOVER, F1_HOVER = fingertip(-0.02, HOVER, Z), fingertip(0.02, -HOVER, Z)
+F0_PRESSED = fingertip(-0.02, RADIUS - DEPTH, Z)
+HOVERING = {0: [(0.0, F0_HOVER)], 1: [(0.0, F1_HOVER)]}
+# Hover 1 s, descend over 0.5 s, hold 1 s.
+DESCENDING = {0: [(0.0, F0_HOVER), (1.0, F0_HOVER), (1.5, F0_PRESSED), (2.5, F0_PRESSED)],
+              1: [(0.0, F1_HOVER)]}
+RIG_S = 2.5
+
+
+def session(tmp_path, rig_trajectory=None, mock_script=None) -> SimpleNamespace:
+    """A real-time session of SESSION_S s (JSON summary, every cloth step in the LCM log, the
+    device record): the mock device playing `mock_script`, or the udp device, whose fake rig
+    (`rig_trajectory`) starts RIG_START_S s after the session starts and streams for RIG_S s.
+    The session starts at the LCM log's first event: the transport hub is made after the
+    preroll, right before the session (--json prints no `stage` lines to wait for)."""
+    log, record = tmp_path / "session.lcm", tmp_path / "record.csv"
+    port = free_port()
+    device = (["--device", "mock", "--script", mock_script] if mock_script
+              else ["--device", "udp", "--udp-bind", f"127.0.0.1:{port}"])
+    rig = None
+    with Server(*device, "--duration", SESSION_S, "--json", "--no-zenoh", "--cloth-rate", "1000",
+                "--record", record, cwd=tmp_path, lcm_log=log) as srv:
+        ready = srv.wait_ready()
+        if rig_trajectory:
+            time.sleep(max(0.0, ready + RIG_START_S - time.monotonic()))
+            with Rig(port, write_trajectory(tmp_path / "rig.csv", rig_trajectory), RIG_S,
+                     tmp_path / "rig_forces.csv") as r:
+                rig = SimpleNamespace(summary=r.finish(), forces=r.forces())
+        rc = srv.finish(seconds=SESSION_S + 60)
+        assert rc == 0, f"exit {rc}: {srv.stderr[-3000:]}"
+        summary = json.loads(srv.stdout.strip().splitlines()[-1])
+    events = read_lcm_log(log)
+    with record.open(newline="") as f:
+        rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+    cloth = {m.step: (m.time, m.positions) for topic, m in events if topic == "cloth"}
+    return SimpleNamespace(summary=summary, samples=haptic_samples(events), cloth=cloth,
+                           record=rows, rig=rig)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The cloth undisturbed: a mock session whose fingertips hold the hovering positions from
+    the first tick, 4 cm from the cloth."""
+    d = tmp_path_factory.mktemp("reference")
+    script = write_trajectory(d / "far.csv", {0: [(0.0, F0_HOVER), (1.0, F0_HOVER)],
+                                              1: [(0.0, F1_HOVER), (1.0, F1_HOVER)]})
+    ref = session(d, mock_script=script)
+    assert ref.summary["contact_ticks"] == 0 and ref.summary["contact_samples"] == 0
+    return ref
+
+
+def check_cloth_undisturbed(run, reference, until: float) -> int:
+    """Every cloth state of `run` up to session time `until` equals the reference's state of the
+    same step (the step is deterministic: the same binary, no contact). Returns how many."""
+    steps = [k for k, (t, _) in sorted(run.cloth.items()) if t <= until and k in reference.cloth]
+    assert len(steps) > 0.5 * until * 1000, f"{len(steps)} common cloth steps before {until} s"
+    worst = max(abs(a - b) for k in steps
+                for p, q in zip(run.cloth[k][1], reference.cloth[k][1]) for a, b in zip(p, q))
+    assert worst <= 1e-7, f"the cloth {worst * 1e3:.4f} mm off the undisturbed one before {until} s"
+    return len(steps)
+
+
+def check_absent_before(run, t_first: float):
+    """Before the rig's first packet the fingers read the device origin and are absent: no
+    contact, zero command, on every tick."""
+    # (the record's times have 9 significant digits)
+    before = [s for s in run.samples if s["time"] < t_first - 0.0005]
+    assert len(before) > 0.9 * RIG_START_S * 1000, len(before)
+    for s in before:
+        assert s["device_position"] == [(0.0, 0.0, 0.0)] * 2, s
+        assert not any(s["in_contact"]) and all(c == (0.0, 0.0, 0.0) for c in s["command"]), s
+
+
+def test_the_device_origin_is_inside_the_cloth(reference):
+    # The premise: the device origin, where a UDP device's fingers read before its first packet,
+    # stays within a fingertip radius of the cloth (its nearest vertices in x and z) all the
+    # time before the rig arrives: a finger there, were it present, would touch the cloth.
+    assert to_device(ORIGIN) == (0.0, 0.0, 0.0)
+    states = [x for t, x in reference.cloth.values() if t < RIG_START_S]
+    assert len(states) > 1000
+    off = max(abs(p[1] - ORIGIN[1]) for x in states
+              for p in sorted(x, key=lambda p: math.hypot(p[0] - ORIGIN[0], p[2] - ORIGIN[2]))[:4])
+    assert off < RADIUS, f"the cloth passes {off * 1e3:.1f} mm from the device origin"
+
+
+def test_a_hovering_rig_never_touches(tmp_path, reference):
+    run = session(tmp_path, HOVERING)
+    s = run.summary
+    # The rig streamed, and nothing touched the cloth at any time.
+    assert s["device_counters"]["samples"] > 0.8 * RIG_S * 1000, s["device_counters"]
+    assert s["contact_ticks"] == 0 and s["contact_samples"] == 0, s
+    assert s["max_force_n"] == 0.0 and s["slip_ticks"] == 0, s
+    t_first = run.record[0]["time"]
+    assert abs(t_first - RIG_START_S) < 0.5, t_first
+    check_absent_before(run, t_first)
+    # Every force the rig got, the first included, is exactly zero on every finger.
+    assert len(run.rig.forces) > 0.8 * RIG_S * 1000, run.rig.summary
+    assert all(v == 0.0 for f in run.rig.forces[0]["forces"] for v in f), run.rig.forces[0]
+    assert all(v == 0.0 for p in run.rig.forces for f in p["forces"] for v in f)
+    # The whole session's cloth is the undisturbed cloth.
+    check_cloth_undisturbed(run, reference, until=SESSION_S)
+
+
+def test_a_late_rig_touches_only_after_it_descends(tmp_path, reference):
+    run = session(tmp_path, DESCENDING)
+    s = run.summary
+    rows0 = [r for r in run.record if r["finger"] == 0]
+    t_first, t_last = rows0[0]["time"], rows0[-1]["time"]
+    # The descent starts where finger 0 first leaves its hovering position (loop clock).
+    t_descent = next(r["time"] for r in rows0 if abs(r["y"] - F0_HOVER[1]) > 1e-6)
+    assert abs(t_first - RIG_START_S) < 0.5, t_first
+    assert 0.8 < t_descent - t_first < 1.3, (t_first, t_descent)
+
+    # The first force packet is exactly zero on every finger; the press is felt later.
+    first = run.rig.forces[0]["forces"]
+    assert all(v == 0.0 for f in first for v in f), first
+    assert max(math.hypot(*p["forces"][0]) for p in run.rig.forces) > 1e-4
+
+    # Contact only after the descent: every in-contact tick, and so the summary's count.
+    check_absent_before(run, t_first)
+    ticks = [x["tick"] for x in run.samples]
+    assert ticks == list(range(1, s["haptic_ticks"] + 1))  # every tick is in the log
+    touching = [x["time"] for x in run.samples if any(x["in_contact"])]
+    assert s["contact_ticks"] == len(touching) > 100, (s["contact_ticks"], len(touching))
+    assert min(touching) > t_descent, (min(touching), t_descent)
+    # ... and while the rig streamed: absent again once its packets stop (the watchdog).
+    assert max(touching) <= t_last + 0.010, (max(touching), t_last)
+    assert s["contact_ticks"] <= round((t_last - t_descent) * 1000) + 10
+
+    # The cloth was not disturbed before the rig arrived, nor while it hovered.
+    check_cloth_undisturbed(run, reference, until=t_descent)
