@@ -81,13 +81,7 @@ void ResponseContact::touch(const ClothSnapshot& s, double now, double, const Fi
   out.velocity = tip.velocity;
   out.force = F;
   out.proxy = tip.centre + F / k_;  // where the coupling spring's stretch puts it
-  out.in_contact = contact_[f];
-  out.slipping = out.in_contact && r.slipping;
-  out.normal = r.normal;
-  out.contact = r.contact;
-  out.triangle = out.in_contact ? r.triangle : -1;
-  for (int i = 0; i < 3; ++i) out.bary[i] = r.bary[i];
-  out.stiffness = out.in_contact ? k_ : 0.0;
+  report_proxy_contact(r, contact_[f], k_, out);
 }
 
 }  // namespace hapticloth::haptics

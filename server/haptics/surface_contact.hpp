@@ -33,6 +33,18 @@ struct Fingertip {
   Vec3 velocity = Vec3::Zero();  ///< m/s
 };
 
+/// Where and how finger `out` touches, from the global step's proxy `r` (the contact point,
+/// normal, triangle, slip), for a finger in contact or not (`in_contact`).
+inline void report_proxy_contact(const ProxyResult& r, bool in_contact, double k, FingerReport& out) {
+  out.in_contact = in_contact;
+  out.slipping = in_contact && r.slipping;
+  out.normal = r.normal;
+  out.contact = r.contact;
+  out.triangle = in_contact ? r.triangle : -1;
+  for (int i = 0; i < 3; ++i) out.bary[i] = r.bary[i];
+  out.stiffness = in_contact ? k : 0.0;
+}
+
 class SurfaceContact {
  public:
   virtual ~SurfaceContact() = default;

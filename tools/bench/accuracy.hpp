@@ -21,6 +21,9 @@ struct AccuracyOptions {
 /// measures each run's error against a reference run (dt 0.05 ms, alpha 0.5, tight solve) and
 /// its CPU time per simulated second. Marks the Pareto front of each scene.
 nlohmann::json accuracy(const AccuracyOptions& opt);
+/// The multirate path on the 15842-triangle hanging square against the same scene directly
+/// coupled at 1 ms (tools/bench/fine_cloth.cpp).
+nlohmann::json fine_cloth(const AccuracyOptions& opt);
 
 struct StabilityOptions {
   bool quick = false;
