@@ -27,8 +27,9 @@ struct SessionConfig {
   DeviceMapping mapping;
   devices::GateConfig gate;
   bool try_realtime = true;     ///< SCHED_FIFO + mlockall for the haptic thread if permitted
-  /// Local refinement (4.2): a subdivided patch per fingertip at the haptic rate. The server
-  /// turns it on when the global step does not fit in the haptic period.
+  /// The multirate path (4.2): the haptic loop renders from a local model between global steps
+  /// longer than its period. The server turns it on when the global step does not fit in the
+  /// haptic period (the scene's local_patch).
   bool local_patch = false;
   /// The local model of the multirate path (local_patch true).
   LocalModel local_model = LocalModel::Response;

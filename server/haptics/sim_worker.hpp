@@ -1,8 +1,9 @@
 // The global simulation side of the haptic coupling (section 4.3): each step takes the haptic
-// loop's latest fingertips, couples them to the cloth (direct coupling: the fingertip proxies
-// solved with the cloth in its implicit step, FingertipContact; local refinement: the rendered
-// forces spread over the cloth, KernelCoupling), steps the cloth (eqs. 8-9) and publishes a
-// snapshot for the haptic loop.
+// loop's latest fingertips, couples them to the cloth (direct coupling and the response model:
+// the fingertip proxies solved with the cloth in its implicit step, FingertipContact; the patch
+// model: the rendered forces spread over the cloth, KernelCoupling), steps the cloth (eqs. 8-9)
+// and publishes a snapshot for the haptic loop (with the response model, the step's linear
+// response to the fingertips too).
 #pragma once
 
 #include <memory>
