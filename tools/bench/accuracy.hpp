@@ -14,6 +14,8 @@ struct AccuracyOptions {
   bool quick = false;      ///< a reduced sweep (about a minute) for tests and a first look
   std::string source_dir;  ///< repository root (scenes and materials)
   bool verbose = true;     ///< progress on stderr
+  /// fine_cloth(): the scene of the cloth (default tools/scenes/hanging_square_16k.toml)
+  std::string fine_scene;
 };
 
 /// Sweeps dt, alpha, solver and tolerance, and mesh resolution on three reference scenes

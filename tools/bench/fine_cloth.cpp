@@ -64,7 +64,9 @@ FineRun run(const app::Scene& sc, const cloth::ClothModel& m, const cloth::Cloth
 
 json fine_cloth(const AccuracyOptions& opt) {
   const app::Scene sc = app::load_scene(opt.source_dir + "/tools/scenes/hanging_square.toml");
-  app::Scene fine = app::load_scene(opt.source_dir + "/tools/scenes/hanging_square_16k.toml");
+  app::Scene fine = app::load_scene(opt.fine_scene.empty()
+                                        ? opt.source_dir + "/tools/scenes/hanging_square_16k.toml"
+                                        : opt.fine_scene);
   fine.haptics = sc.haptics;  // the device, mapping and fingertip of the main job
   fine.device = sc.device;
   auto say = [&](const std::string& s) {
@@ -75,9 +77,8 @@ json fine_cloth(const AccuracyOptions& opt) {
   const cloth::ClothState start = settle(fine, m, cloth::rest_state(m), 0.02, sc.preroll);
   const devices::Trajectory script =
       devices::load_trajectory(opt.source_dir + "/tools/scenes/touch_stroke_pinch.toml", 2);
-  RunConfig direct;
+  RunConfig direct = default_config(fine);  // the scene's own solver settings
   direct.dt = 1e-3;
-  direct.solver = fine.solver;
   say("reference: direct coupling at 1 ms");
   const FineRun ref = run(fine, m, start, script, direct);
   double fmax = 0.0;
@@ -96,6 +97,8 @@ json fine_cloth(const AccuracyOptions& opt) {
                     {"gap_checks", fr.gap_checks},
                     {"cpu_s_per_sim_s", fr.cpu / script.duration()},
                     {"restores", fr.events.restores},
+                    {"retries", fr.events.retries},
+                    {"solver_not_converged", fr.events.solver_not_converged},
                     {"contact_revisions", fr.events.contact_revisions}});
   };
   row("direct 1 ms (reference)", direct, ref);
@@ -108,7 +111,7 @@ json fine_cloth(const AccuracyOptions& opt) {
       say(describe(c));
       row(std::string("multirate ") + haptics::to_string(model), c, run(fine, m, start, script, c));
     }
-  return {{"what", "tools/scenes/hanging_square_16k.toml (" + std::to_string(m.num_triangles()) +
+  return {{"what", fine.name + " (" + std::to_string(m.num_triangles()) +
                        " triangles) with tools/scenes/touch_stroke_pinch.toml on the stepped clock; "
                        "force error: relative RMS against direct coupling at 1 ms, every 1 ms; gap: "
                        "| distance from the rendered fingertip centre to the cloth - r | at each "

@@ -129,6 +129,9 @@ int main(int argc, char** argv) {
   bool fine_cloth = false;
   acc->add_flag("--fine-cloth", fine_cloth, "only the multirate path on the 15842-triangle square "
                                             "against direct coupling at 1 ms (several minutes)");
+  std::string fine_scene;
+  acc->add_option("--fine-scene", fine_scene, "--fine-cloth: another cloth (a scene file of the "
+                                              "same 0.5 m square, e.g. tools/scenes/hanging_square_4k.toml)");
   acc->add_flag("--json", json, "one JSON object on one line");
   acc->add_option("--plot", png, "also write this PNG (and the JSON beside it)")->check(opts::writable_file());
 
@@ -164,6 +167,7 @@ int main(int argc, char** argv) {
       bench::AccuracyOptions o;
       o.quick = quick;
       o.source_dir = HAPTICLOTH_SOURCE_DIR;
+      o.fine_scene = fine_scene;
       if (fine_cloth) return finish(bench::fine_cloth(o), json, "");
       return finish(bench::accuracy(o), json, png);
     }
