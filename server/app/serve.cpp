@@ -53,20 +53,16 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
        << " last step is rendered until the next";
   }
   s.push_back(os.str());
-  if (sc.haptics.local_patch && sc.haptics.local_model == haptics::LocalModel::Patch &&
-      sc.integrator.alpha < 1.0) {
+  if (sc.integrator.alpha < 1.0) {
     std::ostringstream a;
-    a << "alpha " << sc.integrator.alpha << " < 1 with local refinement: on stiff cloth this"
-      << " abandons steps (hapticloth-bench stability, BENCHMARKS.md); the integrator switches to"
-      << " alpha 1 at the first energy explosion, and alpha 1 is the recommended setting here";
-    s.push_back(a.str());
-  }
-  if ((!sc.haptics.local_patch || sc.haptics.local_model == haptics::LocalModel::Response) &&
-      sc.integrator.alpha < 1.0) {
-    std::ostringstream a;
-    a << "alpha " << sc.integrator.alpha << " < 1 asked for, alpha 1 used: the fingertip contacts"
-      << " are stiff springs in the implicit step, which only backward Euler damps"
-      << " (docs/contact.md)";
+    a << "alpha " << sc.integrator.alpha;
+    if (sc.haptics.local_patch && sc.haptics.local_model == haptics::LocalModel::Patch)
+      a << " < 1 with the patch model: on stiff cloth this abandons steps (hapticloth-bench"
+        << " stability, BENCHMARKS.md); the integrator switches to alpha 1 at the first energy"
+        << " explosion, and alpha 1 is the recommended setting here";
+    else  // the proxies are solved with the cloth (direct coupling, response model)
+      a << " < 1 asked for, alpha 1 used: the fingertip contacts are stiff springs in the implicit"
+        << " step, which only backward Euler damps (docs/contact.md)";
     s.push_back(a.str());
   }
   s.push_back(sc.material.viscous() ? "strain-rate (viscous) terms on: the material has viscosity"
