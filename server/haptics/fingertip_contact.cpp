@@ -16,6 +16,8 @@ using cloth::Mat3;
 // negative depth) is dropped; a point deeper than kAddDepth inside a sphere is added.
 constexpr double kPullDepth = 1e-6;  // m
 constexpr double kAddDepth = 5e-6;   // m
+// Re-solves of a step that may release contacts (see revise()).
+constexpr int kFreeRevisions = 12;
 }  // namespace
 
 FingertipContact::FingertipContact(const cloth::ClothModel& model,
@@ -35,7 +37,7 @@ FingertipContact::FingertipContact(const cloth::ClothModel& model,
     throw std::invalid_argument("fingertip contact: radius, stiffnesses must be > 0");
   spacing_ = p_.sample_spacing > 0.0 ? p_.sample_spacing : p_.radius / 8.0;
   // Subdivide each triangle so that its sub-triangles' edges are at most the spacing: every
-  // point of the cloth is then within spacing / sqrt(3) of a sample.
+  // point of the cloth is then within spacing / sqrt(3) of a sample (a node).
   const int nt = static_cast<int>(tris_.size());
   sub_.resize(nt);
   first_.resize(nt + 1, 0);
@@ -44,7 +46,7 @@ FingertipContact::FingertipContact(const cloth::ClothModel& model,
     for (int k = 0; k < 3; ++k)
       e = std::max(e, (model_.rest_positions[tris_[t][k]] - model_.rest_positions[tris_[t][(k + 1) % 3]]).norm());
     sub_[t] = std::max(1, static_cast<int>(std::ceil(e / spacing_ - 1e-9)));
-    first_[t + 1] = first_[t] + sub_[t] * sub_[t];
+    first_[t + 1] = first_[t] + (sub_[t] + 1) * (sub_[t] + 2) / 2;
   }
   for (int f = 0; f < fingers_; ++f) {
     fing_[f].cand.resize(nt);
@@ -55,12 +57,16 @@ FingertipContact::FingertipContact(const cloth::ClothModel& model,
   integ_.set_contacts(this);
 }
 
-// The samples of triangle t (positions x) whose centroid can lie within R of c, in ascending
-// order. Sample k is the centroid of sub-triangle k of an m x m subdivision: m(m+1)/2 upright
-// ones (rows i, columns j, i + j <= m - 1, centroid at b1 = (i + 1/3) / m, b2 = (j + 1/3) / m),
-// then m(m-1)/2 inverted ones (offset 2/3), row by row. The sphere's reach projected on the triangle's plane is an ellipse in barycentric
+// The samples of triangle t (positions x) that can lie within R of c, in ascending order, with
+// their share of the triangle's area. The samples are the nodes of an m x m subdivision (the
+// trapezoidal rule on each sub-triangle: a node carries a third of the area of every
+// sub-triangle it is a corner of): node (i, j), i + j <= m, is at b1 = i / m, b2 = j / m,
+// numbered row by row. So the cloth's vertices and points along its edges are samples
+// themselves: a vertex tented into a sphere or a fold's ridge is pushed out directly (with
+// sub-triangle centroids as samples, such a vertex stood up to a third of the spacing deeper
+// than its nearest sample). The sphere's reach projected on the triangle's plane is an ellipse in barycentric
 // coordinates (b - b*)^T G (b - b*) <= R^2 - h^2 (G the Gram matrix of the edges, b* the foot
-// of c, h its height); its bounding box picks the rows and columns of the sub-triangle grid.
+// of c, h its height); its bounding box picks the rows and columns of the node grid.
 // A triangle the size of the fingertip or smaller is enumerated whole.
 template <class Fn>
 void FingertipContact::for_samples_near(int t, const std::vector<Vec3>& x, const Vec3& c,
@@ -80,24 +86,23 @@ void FingertipContact::for_samples_near(int t, const std::vector<Vec3>& x, const
     const double w1 = std::sqrt(s2 * g22 / det), w2 = std::sqrt(s2 * g11 / det);
     lo1 = b1 - w1, hi1 = b1 + w1, lo2 = b2 - w2, hi2 = b2 + w2;
   }
-  for (int inverted = 0; inverted < 2; ++inverted) {
-    const double o = inverted ? 2.0 / 3.0 : 1.0 / 3.0;
-    const int rows = inverted ? m - 1 : m;
-    const int base = inverted ? m * (m + 1) / 2 : 0;
-    const int i0 = std::max(0, static_cast<int>(std::floor(lo1 * m - o)));
-    const int i1 = std::min(rows - 1, static_cast<int>(std::ceil(hi1 * m - o)));
-    const int j0 = std::max(0, static_cast<int>(std::floor(lo2 * m - o)));
-    for (int i = i0; i <= i1; ++i) {
-      const int row_len = rows - i;
-      const int j1 = std::min(row_len - 1, static_cast<int>(std::ceil(hi2 * m - o)));
-      const int row_start = base + i * rows - i * (i - 1) / 2;
-      for (int j = j0; j <= j1; ++j) {
-        double b[3];
-        b[1] = (i + o) / m;
-        b[2] = (j + o) / m;
-        b[0] = 1.0 - b[1] - b[2];
-        fn(row_start + j, b);
-      }
+  // Area shares (in sub-triangle areas): a corner of the triangle is a corner of 1
+  // sub-triangle, a node inside an edge of 3, an interior node of 6.
+  const double unit = model_.elements[t].area / (3.0 * m * m);
+  const int i0 = std::max(0, static_cast<int>(std::floor(lo1 * m)));
+  const int i1 = std::min(m, static_cast<int>(std::ceil(hi1 * m)));
+  const int j0 = std::max(0, static_cast<int>(std::floor(lo2 * m)));
+  for (int i = i0; i <= i1; ++i) {
+    const int j1 = std::min(m - i, static_cast<int>(std::ceil(hi2 * m)));
+    const int row_start = i * (m + 1) - i * (i - 1) / 2;
+    for (int j = j0; j <= j1; ++j) {
+      double b[3];
+      b[1] = static_cast<double>(i) / m;
+      b[2] = static_cast<double>(j) / m;
+      b[0] = static_cast<double>(m - i - j) / m;
+      const int on_edges = (i == 0) + (j == 0) + (i + j == m);
+      const double w = unit * (on_edges == 0 ? 6.0 : on_edges == 1 ? 3.0 : 1.0);
+      fn(row_start + j, b, w);
     }
   }
 }
@@ -138,12 +143,10 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
   size_t j = 0;  // walks the last step's contacts (both lists ascend by sample id)
   for (int c = 0; c < F.ncand; ++c) {
     const int t = F.cand[c];
-    const int ns = sub_[t] * sub_[t];
-    const double w = model_.elements[t].area / ns;
     double vmax = 0.0;
     for (int k = 0; k < 3; ++k) vmax = std::max(vmax, s.v[tris_[t][k]].norm());
     const double R = p_.radius + (proxy_at - p).norm() + h_ * vmax;
-    for_samples_near(t, s.x, p, R, [&](int k, const double* b) {
+    for_samples_near(t, s.x, p, R, [&](int k, const double* b, double w) {
       Sample q;
       for (int i = 0; i < 3; ++i) q.b[i] = b[i];
       const Vec3 x = point(s.x, t, q.b);
@@ -203,13 +206,19 @@ void FingertipContact::decide_friction(int f, Sample& q) const {
   q.slide = q.sliding && ftn > 0.0 ? Vec3(ft * (lim / ftn)) : Vec3::Zero();
 }
 
+// The normal force of a contact's linearized spring at the end of the step (rel_step: the
+// point's motion relative to the proxy), N; negative if it would pull.
+double FingertipContact::normal_at_end(const Sample& q, const Vec3& rel_step) const {
+  return p_.pressure_stiffness * q.w * (q.depth0 - q.n.dot(rel_step));
+}
+
 // Coulomb at the end of the solved step (rel_step: the point's motion relative to the proxy):
 // a sticking contact whose spring would leave the friction cone slides instead, and a sliding
 // one takes mu x its end normal force. Returns how much its force changed, N (infinity when
 // it goes back to sticking).
 double FingertipContact::revise_friction(Sample& q, const Vec3& p0, const Vec3& rel_step) const {
   const double k = p_.pressure_stiffness * q.w;
-  const double lim = p_.friction * std::max(k * (q.depth0 - q.n.dot(rel_step)), 0.0);
+  const double lim = p_.friction * std::max(normal_at_end(q, rel_step), 0.0);
   const double tol = 5e-3 * lim + 1e-9;
   if (!q.sliding) {
     const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
@@ -252,6 +261,7 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
                                   const std::array<FingerTarget, kMaxFingers>& in, double h) {
   h_ = h;
   s0_ = &s;
+  revisions_ = 0;
   bp_.update(s.x);
   double v2 = 0.0;
   for (const Vec3& v : s.v) v2 = std::max(v2, v.squaredNorm());
@@ -277,12 +287,28 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
       seen_[f] = true;
     }
     p0_[f] = P.x;
-    P.target = in[f].position;
-    P.target_velocity = in[f].velocity;
+    set_coupling_target(P, in[f]);
     P.damping = p_.coupling_damping;
     find_samples(f, s, P.x + last_disp_[f]);
   }
   rebuild_springs();
+}
+
+// The coupling's target for proxy P: the device's fingertip. But when the spring would ask
+// more than the device can render (a hand pushing on through the cloth past the device's
+// force limit, or a long global step of the multirate path dragging the cloth after a fast
+// finger), the target is pulled back towards the proxy until the spring asks exactly that
+// limit. So the cloth gets no more than the device can render from the spring (the gate
+// clamps the rendered force to the same limit), and a saturated push cannot press the cloth
+// into the fingertip with tens of newtons. The damper still follows the device's velocity:
+// scaling it back too let the multirate path's global proxies trail a fast finger
+// (`hapticloth-bench stability`: 28 of 36 multirate cells instead of 34).
+void FingertipContact::set_coupling_target(cloth::ProxyNode& P, const FingerTarget& device) const {
+  const Vec3 reach = device.position - P.x;
+  const double ask = p_.coupling_stiffness * reach.norm();
+  const double scale = p_.max_force > 0.0 && ask > p_.max_force ? p_.max_force / ask : 1.0;
+  P.target = P.x + scale * reach;
+  P.target_velocity = device.velocity;
 }
 
 // Samples of the candidate triangles that would end more than kAddDepth inside the sphere
@@ -295,8 +321,7 @@ bool FingertipContact::add_contacts(int f, const std::vector<Vec3>& x_new, const
   const size_t nold = F.now.size();
   for (int c = 0; c < F.ncand; ++c) {
     const int t = F.cand[c];
-    const int ns = sub_[t] * sub_[t];
-    for_samples_near(t, x_new, p1, p_.radius, [&](int k, const double* b) {
+    for_samples_near(t, x_new, p1, p_.radius, [&](int k, const double* b, double w) {
       const int id = first_[t] + k;
       while (j < nold && F.now[j].id < id) ++j;
       if (j < nold && F.now[j].id == id) return;
@@ -309,7 +334,7 @@ bool FingertipContact::add_contacts(int f, const std::vector<Vec3>& x_new, const
       if (d < 1e-12) return;
       q.id = id;
       q.tri = t;
-      q.w = model_.elements[t].area / ns;
+      q.w = w;
       q.n = (x - p0) / d;
       q.depth0 = p_.radius - d;
       q.x0 = x;
@@ -327,6 +352,15 @@ bool FingertipContact::add_contacts(int f, const std::vector<Vec3>& x_new, const
 bool FingertipContact::revise(const std::vector<Vec3>& x_new,
                               const std::vector<cloth::ProxyNode>& proxies,
                               std::vector<cloth::PointSpring>&) {
+  // The first kFreeRevisions re-solves of a step may release contacts; after them the
+  // contact set only grows (friction is still revised), so no sample is left inside a sphere
+  // at the end. Without that, a step whose new contacts start outside the sphere can cycle
+  // (add five, release seven, add ten, ...) up to the revision cap and end with the cloth
+  // inside. Twelve free revisions leave the multirate path's 20 ms pinch and 25 Hz stroke as
+  // they were (fewer, or freezing friction too, let the cloth end 0.4-1.2 mm inside a
+  // fingertip in the pinch and the stroke's friction chatter).
+  const bool settle = revisions_ < kFreeRevisions;
+  ++revisions_;
   bool changed = false;
   for (int f = 0; f < fingers_; ++f) {
     if (!valid_[f]) continue;
@@ -339,17 +373,18 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
     // Contacts that would pull at the end of the step are released; points that would end
     // inside the sphere become contacts; Coulomb's law is checked on the solved step. The step
     // is solved again for every new contact, and for released contacts and friction
-    // corrections once their forces add up to 0.2% of the finger's normal force (smaller ones
-    // are applied from the next step on: the contact set and friction state move with them).
+    // corrections once their forces add up to 0.2% of the finger's normal force at the end of
+    // the step (smaller ones are applied from the next step on: the contact set and friction
+    // state move with them).
     double pulled = 0.0, fchange = 0.0, fscale = 0.0;
     for (Sample& q : F.now) {
-      const double k = p_.pressure_stiffness * q.w;
       const Vec3 rel = point(x_new, q.tri, q.b) - q.x0 - dp;
       const double depth1 = q.depth0 - q.n.dot(rel);
-      fscale += k * std::max(q.depth0, 0.0);
-      q.release = depth1 < -kPullDepth;
+      const double fn1 = normal_at_end(q, rel);
+      fscale += std::max(fn1, 0.0);
+      q.release = settle && depth1 < -kPullDepth;
       if (q.release)
-        pulled += -k * depth1;
+        pulled += -fn1;
       else
         fchange += revise_friction(q, p0, rel);
     }

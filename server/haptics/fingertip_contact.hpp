@@ -4,10 +4,11 @@
 //
 // Each fingertip is a massless proxy node of eq. 9 (cloth::ProxyNode), held to the device's
 // fingertip by the virtual coupling (spring and damper). The cloth's surface is sampled at
-// sub-triangle centroids no more than `sample_spacing` apart (a midpoint quadrature of each
-// triangle); every sample inside the sphere gets a one-sided penalty pressure kappa x depth
-// over its area along the sphere's normal, plus Coulomb friction (a tangential spring to an
-// anchor on the sphere while it sticks, mu x its normal force while it slips). Each contact is a
+// the nodes of a subdivision of each triangle, no more than `sample_spacing` apart (the
+// trapezoidal rule on the sub-triangles: vertices and edges are samples too); every sample
+// inside the sphere gets a one-sided penalty pressure kappa x depth over its area along the
+// sphere's normal, plus Coulomb friction (a tangential spring to an anchor on the sphere while
+// it sticks, mu x its normal force while it slips). Each contact is a
 // cloth::PointSpring: its stiffness is in the system matrix, so the light vertices under a
 // finger stay stable at dt 1 ms. After the solve, a contact that would pull is dropped, a sample
 // that would end inside the sphere is added, and Coulomb's law is checked on the solved step;
@@ -33,6 +34,7 @@ struct ContactParams {
   double radius = 0.008;              ///< m, fingertip sphere
   double coupling_stiffness = 800.0;  ///< N/m, device to proxy
   double coupling_damping = 1.0;      ///< N s/m, device to proxy
+  double max_force = 0.0;             ///< N: the coupling spring asks no more (0 = no limit)
   double friction = 0.5;              ///< Coulomb coefficient per contact
   double pressure_stiffness = 3e9;    ///< Pa/m: contact pressure per metre of depth (kappa)
   double sample_spacing = 0.0;        ///< m between surface samples; 0 = radius / 8
@@ -70,7 +72,7 @@ class FingertipContact final : public cloth::StepContacts {
 
  private:
   struct Sample {  // one contact: a sample point against one fingertip
-    int id = 0;    // global sample index (triangle offset + sub-triangle)
+    int id = 0;    // global sample index (triangle offset + node)
     int tri = 0;
     double b[3] = {0, 0, 0};
     double w = 0.0;                // area, m^2
@@ -100,6 +102,8 @@ class FingertipContact final : public cloth::StepContacts {
   void find_samples(int f, const cloth::ClothState& s, const Vec3& proxy_at);
   void make_spring(int f, const Sample& q, cloth::PointSpring& sp) const;
   void decide_friction(int f, Sample& q) const;
+  void set_coupling_target(cloth::ProxyNode& P, const FingerTarget& device) const;
+  double normal_at_end(const Sample& q, const Vec3& rel_step) const;
   bool add_contacts(int f, const std::vector<Vec3>& x_new, const Vec3& p0, const Vec3& p1);
   double revise_friction(Sample& q, const Vec3& p0, const Vec3& rel_step) const;
   template <class Fn>
@@ -123,6 +127,7 @@ class FingertipContact final : public cloth::StepContacts {
   std::array<bool, kMaxFingers> seen_{}, valid_{};  // present since the last absence / this step
   const cloth::ClothState* s0_ = nullptr;          // the state the step started from
   double h_ = 1e-3;
+  int revisions_ = 0;  // revise() calls in this step
   double vmax_ = 0.0;  // fastest vertex at the start of the step, m/s
   double max_pen_ = 0.0;
   std::uint64_t samples_in_contact_ = 0;

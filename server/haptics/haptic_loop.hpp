@@ -26,6 +26,7 @@ struct FingerParams {
   double damping = 1.0;      ///< N s/m, virtual coupling damper
   double friction = 0.5;     ///< Coulomb coefficient (stick and slip)
   double contact_stiffness = 3e9;  ///< Pa/m, contact pressure per metre of depth into the sphere
+  double max_force = 0.0;    ///< N, the most the coupling asks of the cloth (the gate's limit; 0 = none)
 };
 
 /// Device frame -> scene frame: p_scene = origin + R p_device (R a rotation).

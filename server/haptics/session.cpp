@@ -57,6 +57,8 @@ Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& 
   // both surface models (the proxy's spring in the implicit step and the patch's contact).
   sc_.finger.stiffness = std::min(sc_.finger.stiffness, dev_.info().max_stiffness);
   gate_ = std::make_unique<devices::SafetyGate>(dev_.info(), sc_.gate);
+  // Nor does it render more than the gate's limit: the cloth gets no more either (third law).
+  sc_.finger.max_force = gate_->max_force();
   snap_ = std::make_unique<TripleBuffer<ClothSnapshot>>(sized_snapshot(model.num_vertices()));
   rep_ = std::make_unique<TripleBuffer<HapticReport>>(HapticReport{});
   const Rendering mode = rendering(sc_.local_patch, sc_.local_model);

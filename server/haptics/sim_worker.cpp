@@ -32,6 +32,7 @@ ContactParams contact_params(const FingerParams& f, double margin) {
   p.coupling_damping = f.damping;
   p.friction = f.friction;
   p.pressure_stiffness = f.contact_stiffness;
+  p.max_force = f.max_force;
   p.margin = margin;
   return p;
 }

@@ -427,12 +427,16 @@ def test_killed_or_stalled_subscribers_never_stall_the_server():
         if c:
             c.close()
         srv.kill()
-    # The haptic loop kept time: every tick ran, and no tick waited for a publisher. A loop
-    # blocked by a dead or stalled subscriber would be late by the length of the stall (seconds
-    # here); the VM's own timer hiccups make a tick late by at most tens of milliseconds, and
-    # they, not the publishers, are what the missed-deadline count measures on a loaded
-    # 2-core machine (so it is not asserted: timing targets live in the benchmarks).
-    assert summary["haptic_ticks"] == round(duration * 1000)
+    # The haptic loop kept time: every tick ran or, after one of the platform's late wake-ups
+    # (1-9 ms, about once per 10 s), was skipped and counted as missed, and no tick waited for a
+    # publisher. A loop blocked by a dead or stalled subscriber would be late by the length of
+    # the stall (seconds here); the VM's own timer hiccups make a tick late by at most tens of
+    # milliseconds, and they, not the publishers, are what the missed-deadline count measures
+    # on a loaded 2-core machine (so its size is not asserted: timing targets live in the
+    # benchmarks).
+    ticks = round(duration * 1000)
+    assert summary["haptic_ticks"] <= ticks
+    assert summary["haptic_ticks"] + summary["missed_deadlines"] >= ticks
     assert summary["period_error_us"]["max"] < 250e3
     # The healthy client kept receiving to the end: no stall (a gap of at most a few batches,
     # which zenoh may drop for a moment while a dead peer's session is torn down) and almost

@@ -74,6 +74,9 @@ struct DrumSpec {
   double shear = 500.0;          ///< Gt, N/m (isotropic with Poisson 0: Et / 2)
   double density = 0.1;          ///< kg/m^2
   double speed = 1e-3;           ///< m/s, the device's descent (quasi-static)
+  double device_depth = 4.5e-3;  ///< m the device goes below touch
+  double hold = 0.0;             ///< s the device then stays there
+  double max_force = 0.0;        ///< N, the safety gate's limit (0: the device's, 20 N)
   std::string solver = "pcg";
   /// s; longer than the haptic period: the multirate path with `model`
   double global_dt = 1e-3;
@@ -101,6 +104,8 @@ struct DrumResult {
   std::vector<DrumPoint> points;  ///< at 1, 2, 3 mm
   double onset_depth = 0.0;       ///< m: proxy depth when contact began (0 = geometric touch)
   double max_penetration = 0.0;   ///< m, deepest cloth point inside the sphere
+  double final_depth = 0.0;       ///< m, the proxy's depth at the end
+  double final_force = 0.0;       ///< N, rendered at the end (normal to the drum)
   haptics::SessionReport report;
 };
 
@@ -128,20 +133,22 @@ inline DrumResult press_drum(const DrumSpec& spec) {
   ic.gravity = Vec3::Zero();
   ic.air_damping = 1.0;
   const double r = d.sphere_radius;
-  const double top = r + 0.001, bottom = r - 0.0045;  // the device goes 4.5 mm below touch
+  const double top = r + 0.001, bottom = r - spec.device_depth;
   const double t_end = (top - bottom) / spec.speed;
   devices::Trajectory tr(2);
   tr.add(0, 0.0, Vec3(0, 0, top));
   tr.add(0, t_end, Vec3(0, 0, bottom));
+  if (spec.hold > 0.0) tr.add(0, t_end + spec.hold, Vec3(0, 0, bottom));
   tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));  // parked away
   haptics::SessionConfig sc = touch_session(0.0);
+  sc.gate.max_force = spec.max_force;
   set_global_step(sc, ic, spec.global_dt, spec.model);
   TouchRig rig(std::move(model), std::move(tr), sc, ic, start, spec.solver);
   DrumResult res;
   res.triangles = rig.model.num_triangles();
   std::vector<std::pair<double, double>> curve;  // (depth, force)
   bool touched = false;
-  rig.session->run_stepped(t_end, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
+  rig.session->run_stepped(t_end + spec.hold, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
     const auto& f = h.last_report().finger[0];
     const double depth = -(f.proxy.z() - r);
     if (f.in_contact && !touched) {
@@ -149,6 +156,8 @@ inline DrumResult press_drum(const DrumSpec& spec) {
       res.onset_depth = depth;
     }
     if (touched) curve.emplace_back(depth, f.force.z());
+    res.final_depth = depth;
+    res.final_force = f.force.z();
   });
   res.report = rig.session->report();
   res.max_penetration = res.report.max_penetration;
