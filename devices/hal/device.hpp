@@ -6,8 +6,9 @@
 // status, never throw, never allocate and never block.
 //
 // Device frame: right-handed, metres, origin at the workspace centre as the driver defines it;
-// the server maps it to the scene with DeviceOptions::frame_offset/scale. Forces are in newtons,
-// in the same frame, applied to the user's fingertip.
+// the server maps it to the scene with the scene's [device] axes and origin
+// (haptics::DeviceMapping: a rotation and an origin). Forces are in newtons, in the same
+// frame, applied to the user's fingertip.
 #pragma once
 
 #include <array>
@@ -71,7 +72,7 @@ enum CommandFlags : std::uint32_t {
 enum class Status : std::uint8_t {
   Ok,       ///< new state read / command written
   NoData,   ///< nothing new since the last read (the last state stays valid until stale)
-  Error,    ///< the device failed; the loop deactivates it
+  Error,    ///< the device failed: its handle turns Failed, the loop counts it and commands nothing more
 };
 const char* to_string(Status s);
 

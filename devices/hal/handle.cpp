@@ -41,7 +41,10 @@ std::string DeviceHandle::activate() {
   } catch (const std::exception& e) {
     error_ = std::string("activate: ") + e.what();
   }
-  if (error_.empty()) state_ = Lifecycle::Active;
+  if (error_.empty()) {
+    state_ = Lifecycle::Active;
+    failed_ = false;
+  }
   return error_;
 }
 
@@ -58,14 +61,20 @@ void DeviceHandle::deactivate() {
 Status DeviceHandle::read(double now, DeviceState& s) noexcept {
   if (state_ != Lifecycle::Active) return Status::Error;
   const Status st = dev_->read(now, s);
-  if (st == Status::Error) state_ = Lifecycle::Failed;
+  if (st == Status::Error) {
+    state_ = Lifecycle::Failed;
+    failed_ = true;
+  }
   return st;
 }
 
 Status DeviceHandle::write(double now, const DeviceCommand& c) noexcept {
   if (state_ != Lifecycle::Active) return Status::Error;
   const Status st = dev_->write(now, c);
-  if (st == Status::Error) state_ = Lifecycle::Failed;
+  if (st == Status::Error) {
+    state_ = Lifecycle::Failed;
+    failed_ = true;
+  }
   return st;
 }
 

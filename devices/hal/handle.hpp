@@ -1,6 +1,6 @@
 // The lifecycle around a driver: the loop holds a DeviceHandle, never a bare Device.
 // It enforces the transitions, skips read/write unless active, and turns a driver's Error into
-// the Failed state (after which only deactivate/reset are possible).
+// the Failed state (after which only deactivate is possible; activate again from Inactive).
 #pragma once
 
 #include <memory>
@@ -33,11 +33,16 @@ class DeviceHandle {
   const DeviceInfo& info() const { return dev_->info(); }
   /// The last error message of a failed transition.
   const std::string& last_error() const { return error_; }
+  /// Whether the device failed (a driver Error) since it was last activated. Kept through
+  /// deactivate(), which turns Failed into Inactive, so that whoever ran the session can
+  /// still report the failure (the server exits 1).
+  bool failed_since_activation() const { return failed_; }
 
  private:
   std::unique_ptr<Device> dev_;
   Lifecycle state_ = Lifecycle::Unconfigured;
   std::string error_;
+  bool failed_ = false;
 };
 
 }  // namespace hapticloth::devices

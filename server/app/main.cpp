@@ -113,10 +113,7 @@ int main(int argc, char** argv) {
     so.transport = tr;
     so.transport_required = zc->count() > 0 || zl->count() > 0;
     return app::serve(scene, so, std::cout);
-  } catch (const app::ConfigError& e) {
-    std::cerr << "hapticloth-server: " << e.what() << "\n";
-    return 2;
-  } catch (const std::exception& e) {
+  } catch (const std::exception& e) {  // app::ConfigError (a bad scene or option) and the rest
     std::cerr << "hapticloth-server: " << e.what() << "\n";
     return 2;
   }

@@ -229,7 +229,7 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
     if (!stopped.empty()) out << "stopped          " << stopped << "\n";
   }
   if (!record_error.empty()) std::cerr << "hapticloth-server: " << record_error << "\n";
-  return dev.state() == devices::Lifecycle::Failed || !record_error.empty() ? 1 : 0;
+  return dev.failed_since_activation() || !record_error.empty() ? 1 : 0;
 }
 
 }  // namespace hapticloth::app

@@ -36,7 +36,7 @@ LocalPatch::LocalPatch(const std::vector<std::array<int, 3>>& global_tris,
 void LocalPatch::rebuild(const ClothSnapshot& s, const Vec3& c) noexcept {
   nt_ = nv_ = ne_ = 0;
   centre_ = c;
-  // Global triangles with a corner within the radius, nearest first up to the capacity.
+  // Global triangles with a corner within the radius, in index order up to the capacity.
   int ns = 0;
   const double R2 = p_.radius * p_.radius;
   for (int t = 0; t < static_cast<int>(gt_.size()) && ns < p_.max_triangles; ++t) {

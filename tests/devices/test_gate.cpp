@@ -207,11 +207,14 @@ TEST(DeviceLifecycle, TransitionsAndErrors) {
   EXPECT_EQ(h.state(), Lifecycle::Failed);
   EXPECT_EQ(h.write(0.001, c), Status::Error);  // failed: no more writes reach the driver
   EXPECT_EQ(raw->writes, 1);
+  EXPECT_TRUE(h.failed_since_activation());
   h.deactivate();
   EXPECT_EQ(h.state(), Lifecycle::Inactive);
+  EXPECT_TRUE(h.failed_since_activation());  // still known after the session's deactivate: exit 1
   EXPECT_EQ(raw->deactivations, 1);
   raw->read_error = false;
   EXPECT_EQ(h.activate(), "");  // can be reactivated
+  EXPECT_FALSE(h.failed_since_activation());
   EXPECT_EQ(h.read(0.002, s), Status::Ok);
   // A driver whose info breaks the HAL contract is refused at configure.
   auto bad = std::make_unique<FakeDriver>();
