@@ -16,6 +16,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "hal/cpu_latency.hpp"
+
 namespace hapticloth::haptics {
 
 namespace {
@@ -107,6 +109,8 @@ void Session::run_realtime(double seconds) {
   r_.haptic = LoopStats{};
   // Real-time scheduling when permitted; a clean fallback (with the reason) when not.
   r_.memory_locked = sc_.try_realtime && mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+  std::unique_ptr<devices::CpuLatencyHold> idle;  // shallow idle states: the deadline's wake-up 25 us sooner
+  if (sc_.try_realtime) idle = std::make_unique<devices::CpuLatencyHold>();
   std::string note;
   const double period = 1.0 / sc_.haptic_rate;
   const double t_start = mono_now() + 0.01;
@@ -182,7 +186,7 @@ void Session::run_realtime(double seconds) {
   stop_flag = true;
   sim_thread.join();
   r_.sim_time = static_cast<double>(elapsed_ticks) * period;
-  r_.scheduling_note = note;
+  r_.scheduling_note = idle ? note + ", " + idle->note() : note;
   if (r_.memory_locked) munlockall();
   stop();
 }

@@ -2,6 +2,7 @@
 //   hapticloth-bench step --scene FILE [--solver cholmod|pcg] [--dt S] [--alpha A] [--steps N]
 //                         [--pinch] --json
 //   hapticloth-bench haptic [--scene FILE] [--duration S] --json
+//   hapticloth-bench timer [--ticks N] [--priority P] --json
 //   hapticloth-bench udp [options of hapticloth-bench-udp] --json
 //   hapticloth-bench transport [options of hapticloth-bench-transport] --json
 //   hapticloth-bench accuracy [--quick] --json [--plot OUT.png]
@@ -22,6 +23,7 @@
 #include "cli_checks.hpp"
 
 #include "accuracy.hpp"
+#include "platform_timer.hpp"
 #include "app/run_summary.hpp"
 #include "app/scene_file.hpp"
 #include "app/serve.hpp"
@@ -82,11 +84,11 @@ int main(int argc, char** argv) {
 
   // The benchmark's name comes first: say which option or name is wrong (CLI11 would only say
   // that a subcommand is required).
-  const std::vector<std::string> names{"step", "haptic", "accuracy", "stability", "limit", "fidelity"};
+  const std::vector<std::string> names{"step", "haptic", "timer", "accuracy", "stability", "limit", "fidelity"};
   if (argc >= 2 && std::string(argv[1]) != "-h" && std::string(argv[1]) != "--help" &&
       std::find(names.begin(), names.end(), argv[1]) == names.end()) {
     std::cerr << "hapticloth-bench: " << (argv[1][0] == '-' ? "unknown option " : "unknown benchmark ")
-              << argv[1] << " (the benchmark comes first: step, haptic, accuracy, stability, limit, "
+              << argv[1] << " (the benchmark comes first: step, haptic, timer, accuracy, stability, limit, "
               << "fidelity, udp, transport; --help)\n";
     return 2;
   }
@@ -119,6 +121,17 @@ int main(int argc, char** argv) {
   haptic->add_option("--duration", haptic_duration, "s in real time (default 10)")
       ->check(opts::positive(3600.0, "s"));
   haptic->add_flag("--json", json, "one JSON object on stdout");
+
+  auto* timer = cli.add_subcommand(
+      "timer", "the platform's wake-up latency at the haptic thread's scheduling, cyclictest-style "
+               "(1 kHz absolute deadlines, no spin): the floor under every real-time figure");
+  long timer_ticks = 10000;
+  int timer_priority = 80;
+  timer->add_option("--ticks", timer_ticks, "wake-ups to measure (default 10000: 10 s)")
+      ->check(CLI::Range(1L, 100000000L));
+  timer->add_option("--priority", timer_priority, "SCHED_FIFO priority (default 80, the haptic thread's)")
+      ->check(CLI::Range(1, 99));
+  timer->add_flag("--json", json, "one JSON object on stdout");
 
   auto* acc = cli.add_subcommand(
       "accuracy", "work-precision: error against a reference run vs CPU time per simulated "
@@ -198,8 +211,19 @@ int main(int argc, char** argv) {
       so.json = true;
       std::ostringstream out;
       const int rc = app::serve(scene, so, out);
-      std::cout << out.str();  // one JSON object (the session report)
+      // The session report, and beside it the platform's timer over as many ticks, measured
+      // right after in the same invocation, with the loop's excess over it.
+      nlohmann::json j = nlohmann::json::parse(out.str());
+      const bench::TimerFigures platform = bench::measure_timer(std::lround(haptic_duration * 1000.0));
+      j["platform_timer"] = platform.to_json();
+      const double loop_p99 = j["period_error_us"]["p99"].get<double>();
+      j["period_error_p99_excess_us"] = loop_p99 - platform.p99_us;
+      std::cout << j.dump() << "\n";
       return rc;
+    }
+    if (*timer) {
+      std::cout << bench::measure_timer(timer_ticks, 1e-3, timer_priority).to_json().dump(json ? -1 : 1) << "\n";
+      return 0;
     }
     app::Scene scene = app::load_scene(scene_path);
     if (!solver.empty()) scene.solver = solver;
