@@ -35,6 +35,7 @@ ClothModel build_model(const Mesh& mesh, const Material& material, const std::ve
       throw std::invalid_argument("triangle " + std::to_string(t) + ": " + err.what());
     }
     m.elements.push_back(e);
+    m.triangles.push_back({tri[0], tri[1], tri[2]});
     for (int k = 0; k < 3; ++k) {
       m.vertex_area[tri[k]] += e.area / 3.0;
       m.mass[tri[k]] += material.areal_density * e.area / 3.0;

@@ -2,6 +2,7 @@
 // its mutable state. Built once at set-up; stepping never changes a ClothModel.
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -14,6 +15,7 @@ namespace hapticloth::cloth {
 struct ClothModel {
   Material material;
   std::vector<ElementRest> elements;
+  std::vector<std::array<int, 3>> triangles;  ///< per element, its vertices (the touched surface)
   std::vector<Vec3> rest_positions;
   std::vector<double> mass;         ///< lumped vertex mass, kg (areal density x area / 3)
   std::vector<double> vertex_area;  ///< lumped vertex area, m^2

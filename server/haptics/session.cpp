@@ -21,11 +21,6 @@
 namespace hapticloth::haptics {
 
 namespace {
-std::vector<std::array<int, 3>> triangles_of(const cloth::ClothModel& m) {
-  std::vector<std::array<int, 3>> t;
-  for (const auto& e : m.elements) t.push_back({e.v[0], e.v[1], e.v[2]});
-  return t;
-}
 ClothSnapshot sized_snapshot(int vertices) {
   ClothSnapshot s;
   s.resize(vertices);
@@ -51,7 +46,7 @@ timespec to_timespec(double t) {
 Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& cfg,
                  std::unique_ptr<cloth::LinearSolver> solver, const cloth::ClothState& start,
                  devices::DeviceHandle& device, const SessionConfig& sc)
-    : dev_(device), sc_(sc), dt_sim_(cfg.dt), tris_(triangles_of(model)) {
+    : dev_(device), sc_(sc), dt_sim_(cfg.dt) {
   if (dev_.state() != devices::Lifecycle::Inactive)
     throw std::invalid_argument("session: the device must be configured (inactive)");
   if (!(sc_.haptic_rate > 0.0)) throw std::invalid_argument("session: haptic_rate must be > 0");
@@ -66,7 +61,7 @@ Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& 
   const Rendering mode = rendering(sc_.local_patch, sc_.local_model);
   sim_ = std::make_unique<SimWorker>(model, cfg, std::move(solver), start, dev_.info().fingers,
                                      sc_.finger, sc_.coupling, mode, *snap_, *rep_);
-  loop_ = std::make_unique<HapticLoop>(tris_, model.num_vertices(), dev_, *gate_, sc_.finger,
+  loop_ = std::make_unique<HapticLoop>(model.triangles, model.num_vertices(), dev_, *gate_, sc_.finger,
                                        sc_.mapping, *snap_, *rep_);
   if (mode == Rendering::Response) loop_->enable_response();
   if (mode == Rendering::Patch) {

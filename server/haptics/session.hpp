@@ -106,7 +106,6 @@ class Session {
   std::unique_ptr<TripleBuffer<HapticReport>> rep_;
   std::unique_ptr<SimWorker> sim_;
   std::unique_ptr<HapticLoop> loop_;
-  std::vector<std::array<int, 3>> tris_;
   std::vector<SessionObserver*> observers_;
   const std::atomic<bool>* stop_request_ = nullptr;
   SessionReport r_;

@@ -9,12 +9,6 @@
 namespace hapticloth::haptics {
 
 namespace {
-std::vector<std::array<int, 3>> triangles_of(const cloth::ClothModel& m) {
-  std::vector<std::array<int, 3>> t;
-  t.reserve(m.elements.size());
-  for (const auto& e : m.elements) t.push_back({e.v[0], e.v[1], e.v[2]});
-  return t;
-}
 // Direct coupling puts the fingertip proxies in the system, with contacts far stiffer than the
 // cloth: backward Euler (alpha 1, L-stable) damps them; at alpha 0.5 they ring and the step
 // blows up (hapticloth-bench stability). The server's stages say so when the scene asks for
@@ -59,7 +53,7 @@ SimWorker::SimWorker(const cloth::ClothModel& model, const cloth::IntegratorConf
       cp_(coupling),
       out_(to_haptics),
       in_(from_haptics),
-      tris_(triangles_of(model)) {
+      tris_(model.triangles) {
   kernel_r_ = cp_.kernel_radius > 0.0 ? cp_.kernel_radius
                                       : std::max(fp_.radius, 2.0 * mean_edge(model_, tris_));
   response_on_ = mode == Rendering::Response;

@@ -74,7 +74,7 @@ class SimWorker {
   double kernel_r_;
   TripleBuffer<ClothSnapshot>& out_;
   TripleBuffer<HapticReport>& in_;
-  std::vector<std::array<int, 3>> tris_;
+  const std::vector<std::array<int, 3>>& tris_;  // the model's
   std::unique_ptr<FingertipContact> tips_;
   std::unique_ptr<KernelCoupling> kernel_;
   bool response_on_ = false;
