@@ -17,29 +17,18 @@
 #include <nlohmann/json.hpp>
 
 #include "hal/cpu_latency.hpp"
+#include "hal/mono_clock.hpp"
 
 namespace hapticloth::haptics {
+
+using devices::mono_now;
+using devices::to_timespec;
 
 namespace {
 ClothSnapshot sized_snapshot(int vertices) {
   ClothSnapshot s;
   s.resize(vertices);
   return s;
-}
-double mono_now() {
-  timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-timespec to_timespec(double t) {
-  timespec ts;
-  ts.tv_sec = static_cast<time_t>(t);
-  ts.tv_nsec = static_cast<long>((t - ts.tv_sec) * 1e9);
-  if (ts.tv_nsec >= 1000000000L) {
-    ++ts.tv_sec;
-    ts.tv_nsec -= 1000000000L;
-  }
-  return ts;
 }
 }  // namespace
 

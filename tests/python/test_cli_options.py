@@ -46,6 +46,8 @@ def base_args(program: str, option: str, tmp: Path, log: Path | None) -> list[st
         return ["--json"] + ([] if option == "--duration" else ["--duration", "0.5"])
     if program in ("hapticloth-bench", "hapticloth-bench udp"):
         return []
+    if program == "hapticloth-bench timer":
+        return ["--json"] + ([] if option == "--ticks" else ["--ticks", "10"])
     if program == "hapticloth-kes":
         return [MATERIAL, "--test", "weft", "--steps", "3", "--csv", tmp / "curve.csv"]
     if program == "hapticloth-render":
@@ -88,6 +90,8 @@ BAD = [
     case("hapticloth-bench haptic", "--duration", "0"),
     case("hapticloth-bench haptic", UNKNOWN),
     case("hapticloth-bench udp", "--duration", "nan"),
+    case("hapticloth-bench timer", "--ticks", "0"),
+    case("hapticloth-bench timer", "--priority", "100"),
     case("hapticloth-bench", UNKNOWN),
     # hapticloth-kes
     case("hapticloth-kes", "--max-strain", "-1"),

@@ -12,21 +12,13 @@
 #include <vector>
 
 #include "hal/cpu_latency.hpp"
+#include "hal/mono_clock.hpp"
 
 namespace hapticloth::bench {
 
 namespace {
-double mono_now() {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-timespec to_timespec(double t) {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(std::floor(t));
-  ts.tv_nsec = static_cast<long>((t - std::floor(t)) * 1e9);
-  return ts;
-}
+using devices::mono_now;
+using devices::to_timespec;
 double percentile(const std::vector<double>& sorted, double q) {
   if (sorted.empty()) return 0.0;
   const size_t i = std::min(sorted.size() - 1, static_cast<size_t>(std::ceil(q * sorted.size())) - 1);
