@@ -105,7 +105,7 @@ class FingertipContact final : public cloth::StepContacts {
   void set_coupling_target(cloth::ProxyNode& P, const FingerTarget& device) const;
   double normal_at_end(const Sample& q, const Vec3& rel_step) const;
   bool add_contacts(int f, const std::vector<Vec3>& x_new, const Vec3& p0, const Vec3& p1);
-  double revise_friction(Sample& q, const Vec3& p0, const Vec3& rel_step) const;
+  double revise_friction(Sample& q, const Vec3& p0, const Vec3& rel_step, bool defer) const;
   template <class Fn>
   void for_samples_near(int t, const std::vector<Vec3>& x, const Vec3& c, double R, Fn&& fn) const;
   Vec3 point(const std::vector<Vec3>& x, int tri, const double b[3]) const;
