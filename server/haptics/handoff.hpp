@@ -70,6 +70,7 @@ struct FingerReport {
   Vec3 position = Vec3::Zero();  ///< fingertip centre (device position mapped to the scene), m
   Vec3 proxy = Vec3::Zero();     ///< god-object position, m
   Vec3 force = Vec3::Zero();     ///< force on the user's finger, N (the cloth gets -force)
+  Vec3 spring = Vec3::Zero();    ///< the coupling spring's part of it (its damper's left out), N
   Vec3 normal = Vec3::Zero();    ///< shaded contact normal, pointing towards the finger
   Vec3 contact = Vec3::Zero();   ///< contact point on the cloth, m
   int triangle = -1;             ///< contact triangle, -1 if none

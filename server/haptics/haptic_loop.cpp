@@ -19,7 +19,10 @@ HapticLoop::HapticLoop(const std::vector<std::array<int, 3>>& triangles, int ver
       map_(map),
       in_(from_sim),
       out_(to_sim),
-      fingers_(device.info().fingers) {
+      fingers_(device.info().fingers),
+      catch_up_(1.0 / device.info().nominal_rate),
+      passivity_(std::min(finger.stiffness, device.info().max_stiffness), 1.0 / device.info().nominal_rate,
+                 gate.max_force()) {
   (void)vertices;
   k_ = std::min(fp_.stiffness, device.info().max_stiffness);
   direct_ = std::make_unique<ProxyContact>(k_);
@@ -75,24 +78,37 @@ void HapticLoop::tick(double now) noexcept {
   // sample the device's position means nothing (a UDP rig not yet connected reads as the
   // device origin, which may be inside the cloth), and after a watchdog trip it is unknown.
   const bool present = gate_.fresh(now, state_.received_time);
+  // A late tick's motion reaches the contact over the ticks it missed (late_tick.hpp).
+  if (catch_up_.late(tick_dt)) ++late_ticks_;
   std::array<Fingertip, kMaxFingers> tips{};
+  std::array<Vec3, kMaxFingers> measured{};
   std::array<bool, kMaxFingers> here{};
   for (int f = 0; f < fingers_; ++f) {
-    tips[f] = Fingertip{f, map_.origin + map_.R * state_.finger[f].position, map_.R * state_.finger[f].velocity};
+    measured[f] = map_.origin + map_.R * state_.finger[f].position;
+    const bool catch_up = present && guard_;
+    tips[f] = Fingertip{f, catch_up ? catch_up_.seen(f, measured[f], tick_dt) : measured[f],
+                        map_.R * state_.finger[f].velocity};
     here[f] = present;
   }
   contact_->prepare(s, tips, here, fingers_);
   for (int f = 0; f < fingers_; ++f) {
+    FingerReport& r = report_.finger[f];
+    Vec3 damp = Vec3::Zero();
     if (present) {
-      contact_->touch(s, now, tick_dt, tips[f], report_.finger[f]);
+      contact_->touch(s, now, tick_dt, tips[f], r);
+      // The coupling's energy over the last interval, with the force the user got then.
+      damp = passivity_.observe(f, tick_dt, map_.R * gated_.force[f], measured[f], r.proxy,
+                                tips[f].velocity, r.force, r.spring, r.in_contact);
     } else {
-      if (report_.finger[f].present) contact_->release(f);
-      absent(report_.finger[f], tips[f].centre, tips[f].velocity);
+      if (r.present) contact_->release(f);
+      absent(r, tips[f].centre, tips[f].velocity);
+      catch_up_.reset(f);
+      passivity_.reset(f);
     }
-    report_.finger[f].present = present;
-    contact = contact || report_.finger[f].in_contact;
+    r.present = present;
+    contact = contact || r.in_contact;
     // Scene -> device frame for the force.
-    cmd_.force[f] = map_.R.transpose() * report_.finger[f].force;
+    cmd_.force[f] = map_.R.transpose() * (guard_ ? Vec3(r.force + damp) : r.force);
   }
   if (contact) ++contact_ticks_;
   gate_.apply(now, state_.received_time, cmd_, gated_);

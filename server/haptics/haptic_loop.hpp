@@ -13,6 +13,8 @@
 #include "hal/handle.hpp"
 #include "hal/safety_gate.hpp"
 #include "haptics/handoff.hpp"
+#include "haptics/late_tick.hpp"
+#include "haptics/passivity.hpp"
 #include "haptics/patch_contact.hpp"
 #include "haptics/surface_contact.hpp"
 #include "haptics/stats.hpp"
@@ -71,6 +73,13 @@ class HapticLoop {
   std::uint64_t contact_ticks() const { return contact_ticks_; }
   /// Ticks on which no finger was within reach of the cloth.
   std::uint64_t narrow_phase_skipped() const { return np_skipped_; }
+  /// Ticks that came more than half a period late (their motion caught up over the missed ticks).
+  std::uint64_t late_ticks() const { return late_ticks_; }
+  const LateTickCatchUp& catch_up() const { return catch_up_; }
+  const CouplingPassivity& passivity() const { return passivity_; }
+  /// The late-tick catch-up and the passivity controller act (the default); off, the observer
+  /// still measures (`hapticloth-bench late-ticks` compares both).
+  void set_time_guard(bool on) { guard_ = on; }
 
  private:
   static void absent(FingerReport& r, const Vec3& centre, const Vec3& velocity) noexcept;
@@ -91,8 +100,11 @@ class HapticLoop {
   std::unique_ptr<PatchContact> patch_;
   std::unique_ptr<SurfaceContact> response_;
   SurfaceContact* contact_;  // direct_, patch_ or response_
+  LateTickCatchUp catch_up_;
+  CouplingPassivity passivity_;
+  bool guard_ = true;
   double last_now_ = -1.0;
-  std::uint64_t tick_ = 0, device_errors_ = 0, contact_ticks_ = 0, np_skipped_ = 0;
+  std::uint64_t tick_ = 0, device_errors_ = 0, contact_ticks_ = 0, np_skipped_ = 0, late_ticks_ = 0;
 };
 
 }  // namespace hapticloth::haptics

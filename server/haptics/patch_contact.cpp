@@ -97,6 +97,7 @@ void PatchContact::touch(const ClothSnapshot& s, double now, double, const Finge
   const Vec3 Ft = Fu - fnp * ns;
   out.slipping = slipping;
   out.force = fn * ns + Ft;
+  out.spring = out.force;
   out.proxy = c + out.force / k_;
   out.normal = ns;
   out.contact = sp.point;

@@ -80,6 +80,7 @@ void ResponseContact::touch(const ClothSnapshot& s, double now, double, const Fi
   out.position = tip.centre;
   out.velocity = tip.velocity;
   out.force = F;
+  out.spring = F;
   out.proxy = tip.centre + F / k_;  // where the coupling spring's stretch puts it
   report_proxy_contact(r, contact_[f], k_, out);
 }

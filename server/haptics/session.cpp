@@ -184,6 +184,9 @@ SessionReport Session::report() const {
   r.patch_rebuilds = loop_->patch_rebuilds();
   r.patch_softened = loop_->patch_softened();
   r.device_errors = loop_->device_errors();
+  r.late_ticks = loop_->late_ticks();
+  r.passivity_ticks = loop_->passivity().stats().active_ticks;
+  r.passivity_deficit = loop_->passivity().stats().deepest_deficit_j;
   if (const FingertipContact* c = sim_->fingertips()) {
     r.max_penetration = c->max_penetration();
     r.contact_samples = c->active_samples();
@@ -214,6 +217,9 @@ std::string SessionReport::to_text() const {
   if (patch_rebuilds > 0)
     os << "local patch      " << patch_rebuilds << " builds, " << patch_softened
        << " with springs softened to stay stable (material stiffer than max_substeps integrate)\n";
+  os << "late ticks       " << late_ticks << " (their motion caught up over the ticks missed); "
+     << "passivity control on " << passivity_ticks << " ticks, coupling's largest deficit "
+     << std::setprecision(2) << passivity_deficit * 1e6 << " uJ\n" << std::setprecision(1);
   os << "scheduling       " << scheduling_note << (memory_locked ? ", memory locked" : "") << "\n";
   return os.str();
 }
@@ -240,6 +246,9 @@ std::string SessionReport::to_json() const {
   j["contact_samples"] = contact_samples;
   j["contact_revisions"] = contact_revisions;
   j["max_penetration_m"] = max_penetration;
+  j["late_ticks"] = late_ticks;
+  j["passivity_ticks"] = passivity_ticks;
+  j["passivity_deficit_j"] = passivity_deficit;
   j["realtime_scheduling"] = realtime_scheduling;
   j["memory_locked"] = memory_locked;
   return j.dump();

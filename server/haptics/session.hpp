@@ -47,6 +47,10 @@ struct SessionReport {
   std::uint64_t contact_samples = 0, contact_revisions = 0;
   double max_penetration = 0.0;
   std::uint64_t patch_rebuilds = 0, patch_softened = 0;  ///< local patch builds (4.2)
+  /// Ticks more than half a period late, and the coupling's passivity controller (passivity.hpp):
+  /// ticks it added damping on, and the most energy the coupling gave beyond passivity (J).
+  std::uint64_t late_ticks = 0, passivity_ticks = 0;
+  double passivity_deficit = 0.0;
   double max_force = 0.0;          ///< N, largest force sent to a finger
   double sim_time = 0.0;           ///< simulated seconds
   bool realtime_scheduling = false;
@@ -69,10 +73,18 @@ class Session {
   /// `sim_period` (s, a multiple of the haptic period; 0 = the integrator's dt).
   /// `on_tick` (optional) is called after every haptic tick.
   template <class F>
-  void run_stepped(double seconds, double sim_period, F&& on_tick);
+  void run_stepped(double seconds, double sim_period, F&& on_tick) {
+    run_stepped_late(seconds, sim_period, [](long) { return 0.0; }, on_tick);
+  }
   void run_stepped(double seconds, double sim_period = 0.0) {
     run_stepped(seconds, sim_period, [](const HapticLoop&, const SimWorker&) {});
   }
+  /// The stepped clock with late ticks: tick k starts `late(k)` seconds after its time, and
+  /// every later tick with it (a kernel that wakes the haptic thread late delays the loop's
+  /// schedule). `seconds` counts the ticks (seconds x the haptic rate of them); the simulation
+  /// steps on tick counts, as the stepped clock always does.
+  template <class L, class F>
+  void run_stepped_late(double seconds, double sim_period, L&& late, F&& on_tick);
   /// Real time for `seconds`: haptic thread at the haptic rate, simulation thread as fast as
   /// its step allows, up to one step per integrator dt.
   void run_realtime(double seconds);
@@ -111,8 +123,8 @@ class Session {
   SessionReport r_;
 };
 
-template <class F>
-void Session::run_stepped(double seconds, double sim_period, F&& on_tick) {
+template <class L, class F>
+void Session::run_stepped_late(double seconds, double sim_period, L&& late, F&& on_tick) {
   start();
   r_.scheduling_note = "stepped clock (no real-time scheduling)";
   const double hp = 1.0 / sc_.haptic_rate;
@@ -120,8 +132,10 @@ void Session::run_stepped(double seconds, double sim_period, F&& on_tick) {
   const long every = std::max(1L, std::lround(sp / hp));
   const long ticks = std::lround(seconds / hp);
   long k = 0;
+  double shift = 0.0;
   for (; k < ticks && !stop_requested(); ++k) {
-    const double now = k * hp;
+    shift += late(k);
+    const double now = k * hp + shift;
     if (k % every == 0) {
       sim_->step(now);
       for (auto* o : observers_) o->on_sim_step(sim_->last_snapshot());
@@ -137,7 +151,7 @@ void Session::run_stepped(double seconds, double sim_period, F&& on_tick) {
     on_tick(*loop_, *sim_);
   }
   r_.sim_time = k * hp;
-  for (long j = 0; j < kWindDownTicks && !loop_->wind_down((k + j) * hp); ++j) {
+  for (long j = 0; j < kWindDownTicks && !loop_->wind_down((k + j) * hp + shift); ++j) {
   }
   stop();
 }

@@ -136,6 +136,27 @@ def test_stability_quick_map():
         assert r["restores"] == 0
 
 
+def test_late_ticks():
+    """hapticloth-bench late-ticks: with ticks 1-20 ms late in the press, the stroke and the
+    pinch, the coupling gives the hand no energy beyond passivity (<= 1 mJ) and no force step
+    (<= 2x the largest tick-to-tick change on time); the catch-up and the passivity controller
+    are what keeps it so (without them the stroke 20 ms late gives 10x more energy, and the
+    pinch 20 ms late a 9x larger step)."""
+    j = bench("late-ticks")
+    assert [c["late_ms"] for c in j["cases"]] == [1.0, 2.0, 5.0, 10.0, 20.0] * 3
+    assert {c["name"] for c in j["cases"]} == {"press", "stroke", "pinch"}
+    for c in j["cases"]:
+        assert c["late_ticks"] == j["late_ticks_per_case"], c
+        assert c["injected_energy_j"] <= 1e-3, c
+        assert c["max_force_jump_n"] <= 2.0 * c["on_time_max_force_jump_n"], c
+        assert c["on_time_max_force_jump_n"] > 0.0, c
+        assert c["injected_energy_j"] <= c["unguarded"]["injected_energy_j"] + 1e-9, c
+    stroke20 = next(c for c in j["cases"] if c["name"] == "stroke" and c["late_ms"] == 20.0)
+    assert stroke20["unguarded"]["injected_energy_j"] > 5.0 * stroke20["injected_energy_j"]
+    pinch20 = next(c for c in j["cases"] if c["name"] == "pinch" and c["late_ms"] == 20.0)
+    assert pinch20["unguarded"]["max_force_jump_n"] > 5.0 * pinch20["max_force_jump_n"]
+
+
 def test_limit_quick():
     j = bench("limit", "--quick")
     assert [r["scene"] for r in j["rows"]] == ["hanging_square", "hanging_square_4k", "hanging_square_16k"]

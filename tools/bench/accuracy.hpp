@@ -60,6 +60,16 @@ struct FidelityOptions {
 /// handkerchief against its weight (tools/bench/fidelity.cpp).
 nlohmann::json fidelity(const FidelityOptions& opt);
 
+struct LateTickOptions {
+  std::string source_dir;
+  unsigned seed = 1;
+  bool verbose = true;
+};
+
+/// Press, stroke and pinch of the main job with ticks 1-20 ms late (tools/bench/late_ticks.cpp):
+/// the energy the coupling gave beyond passivity and the force jumps, against the run on time.
+nlohmann::json late_ticks(const LateTickOptions& opt);
+
 /// The scene's cloth pinched at its middle by both fingertips (direct coupling, the scene's
 /// solver) for `seconds` on the stepped clock: the global step's time with both in contact.
 nlohmann::json pinch_step(const app::Scene& scene, double seconds);

@@ -9,6 +9,7 @@
 //   hapticloth-bench stability [--quick] [--random-steps N] --json [--plot OUT.png]
 //   hapticloth-bench limit [--quick] --json
 //   hapticloth-bench fidelity [--quick] --json
+//   hapticloth-bench late-ticks [--seed N] --json
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -84,12 +85,13 @@ int main(int argc, char** argv) {
 
   // The benchmark's name comes first: say which option or name is wrong (CLI11 would only say
   // that a subcommand is required).
-  const std::vector<std::string> names{"step", "haptic", "timer", "accuracy", "stability", "limit", "fidelity"};
+  const std::vector<std::string> names{"step", "haptic", "timer", "accuracy", "stability", "limit", "fidelity",
+                                        "late-ticks"};
   if (argc >= 2 && std::string(argv[1]) != "-h" && std::string(argv[1]) != "--help" &&
       std::find(names.begin(), names.end(), argv[1]) == names.end()) {
     std::cerr << "hapticloth-bench: " << (argv[1][0] == '-' ? "unknown option " : "unknown benchmark ")
               << argv[1] << " (the benchmark comes first: step, haptic, timer, accuracy, stability, limit, "
-              << "fidelity, udp, transport; --help)\n";
+              << "fidelity, late-ticks, udp, transport; --help)\n";
     return 2;
   }
   CLI::App cli{"hapticloth-bench: benchmarks with machine-readable output"};
@@ -168,6 +170,12 @@ int main(int argc, char** argv) {
                   "handkerchief vs its weight (BENCHMARKS.md, Force fidelity)");
   fid->add_flag("--quick", quick, "two meshes and one pinch");
   fid->add_flag("--json", json, "one JSON object on one line");
+  auto* late = cli.add_subcommand(
+      "late-ticks", "press, stroke and pinch with ticks 1-20 ms late: energy given beyond "
+                    "passivity and force jumps, against the same run on time");
+  unsigned late_seed = 1;
+  late->add_option("--seed", late_seed, "seed of the late moments (default 1)");
+  late->add_flag("--json", json, "one JSON object on one line");
   // Listed for --help; they run in their own programs (exec_sibling above, before parsing).
   cli.add_subcommand("udp", "rig -> server -> rig round trip of the UDP device on loopback, beside "
                             "the platform's timer (options: hapticloth-bench udp --help)");
@@ -201,6 +209,12 @@ int main(int argc, char** argv) {
       bench::FidelityOptions o;
       o.quick = quick;
       return finish(bench::fidelity(o), json, "");
+    }
+    if (*late) {
+      bench::LateTickOptions o;
+      o.source_dir = HAPTICLOTH_SOURCE_DIR;
+      o.seed = late_seed;
+      return finish(bench::late_ticks(o), json, "");
     }
     if (*haptic) {
       app::Scene scene = app::load_scene(haptic_scene);
