@@ -8,7 +8,9 @@ printed by the benchmarks, never asserted here."""
 from __future__ import annotations
 
 import json
+import os
 import math
+import shutil
 import subprocess
 
 import pytest
@@ -155,6 +157,36 @@ def test_late_ticks():
     assert stroke20["unguarded"]["injected_energy_j"] > 5.0 * stroke20["injected_energy_j"]
     pinch20 = next(c for c in j["cases"] if c["name"] == "pinch" and c["late_ms"] == 20.0)
     assert pinch20["unguarded"]["max_force_jump_n"] > 5.0 * pinch20["max_force_jump_n"]
+
+
+def test_haptic_subscribers():
+    """hapticloth-bench haptic --subscribers: 3 alternating off/on pairs of server runs in a
+    network namespace, each with the platform timer beside; every subscriber, over zenoh and
+    over LCM, receives the server's messages. (The figure itself, the period error with and
+    without subscribers, is a benchmark's: BENCHMARKS.md.)"""
+    if os.geteuid() != 0 or not shutil.which("unshare"):
+        pytest.skip("needs root and unshare for the network namespace")
+    j = bench("haptic", "--subscribers", "2", "--duration", "2", timeout=300)
+    assert j["subscribers"] == 2 and j["zenoh_subscribers"] == 1 and j["lcm_subscribers"] == 1
+    assert len(j["pairs"]) == 3
+    assert [list(p)[:2] for p in j["pairs"]] == [["off", "on"], ["on", "off"], ["off", "on"]]
+    for p in j["pairs"]:
+        assert p["off"]["received"] == []
+        got = {r["transport"]: r["messages"] for r in p["on"]["received"]}
+        # 2 s at a 120 Hz cloth rate, plus the haptics, stats and events topics
+        assert got["zenoh"] > 200 and got["lcm"] > 200, p["on"]["received"]
+        for run in (p["off"], p["on"]):
+            assert run["ticks"] >= 1900 and run["period_error_p99_us"] >= 0.0
+        assert p["platform_timer"]["ticks"] == 2000
+    assert j["difference_p99_us"] == pytest.approx(j["on_period_error_p99_us"] - j["off_period_error_p99_us"])
+
+
+def test_haptic_subscribers_bad_input():
+    r = subprocess.run([str(program("hapticloth-bench")), "haptic", "--subscribers", "0", "--json"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2
+    assert "--subscribers: must be a number of subscribers from 1 to 16, not 0" in r.stderr
+    assert "Traceback" not in r.stderr
 
 
 def test_limit_quick():

@@ -108,7 +108,6 @@ BAD_OPTIONS = [
     ("hapticloth-bench-transport", "--seconds", "0"),
     ("hapticloth-bench-transport", "--rate", "nan"),
     ("hapticloth-bench-transport", "--port", "0"),
-    ("hapticloth-bench-transport", "--haptic-seconds", "-1"),
 ]
 
 
@@ -121,6 +120,12 @@ def test_bad_option_value_is_named_with_exit_2(name, option, value, tmp_path, co
     where = [] if name == "hapticloth-bench-transport" else ["--endpoint", unreachable_endpoint()]
     r = tool(name, *first, option, value, *where)
     assert_user_error(r, f"{name}: {option}: must be", f"not {float(value):g}")
+
+
+def test_bench_transport_names_what_replaced_haptic_seconds():
+    r = tool("hapticloth-bench-transport", "--haptic-seconds", "10")
+    assert_user_error(r, "hapticloth-bench-transport: --haptic-seconds: the haptic loop with "
+                         "subscribers is measured by `hapticloth-bench haptic --subscribers N` now")
 
 
 def test_duration_message_reads_as_documented(tmp_path):

@@ -2,6 +2,7 @@
 //   hapticloth-bench step --scene FILE [--solver cholmod|pcg] [--dt S] [--alpha A] [--steps N]
 //                         [--pinch] --json
 //   hapticloth-bench haptic [--scene FILE] [--duration S] --json
+//   hapticloth-bench haptic --subscribers N [--duration S] [--cloth-rate HZ] --json
 //   hapticloth-bench timer [--ticks N] [--priority P] --json
 //   hapticloth-bench udp [options of hapticloth-bench-udp] --json
 //   hapticloth-bench transport [options of hapticloth-bench-transport] --json
@@ -72,6 +73,19 @@ int finish(const nlohmann::json& j, bool json, const std::string& png) {
 int main(int argc, char** argv) {
   using namespace hapticloth;
   if (argc >= 2 && std::string(argv[1]) == "udp") return exec_sibling("hapticloth-bench-udp", argc, argv);
+  if (argc >= 2 && std::string(argv[1]) == "haptic" &&
+      std::any_of(argv + 2, argv + argc, [](const char* a) { return std::string(a).rfind("--subscribers", 0) == 0; })) {
+    // With subscribers: the server and its zenoh and LCM subscribers run as processes inside a
+    // network namespace (Python: clients/python/hapticloth/bench_subscribers.py).
+    const std::string py = std::string(HAPTICLOTH_SOURCE_DIR) + "/.venv/bin/python";
+    std::vector<char*> args{const_cast<char*>(py.c_str()), const_cast<char*>("-m"),
+                            const_cast<char*>("hapticloth.bench_subscribers")};
+    for (int i = 2; i < argc; ++i) args.push_back(argv[i]);
+    args.push_back(nullptr);
+    ::execv(py.c_str(), args.data());
+    std::cerr << "hapticloth-bench: cannot run " << py << " (run tools/setup)\n";
+    return 2;
+  }
   if (argc >= 2 && std::string(argv[1]) == "transport") {
     // The transport benchmark's subscriber side is Python (the client package in .venv).
     const std::string py = std::string(HAPTICLOTH_SOURCE_DIR) + "/.venv/bin/hapticloth-bench-transport";
@@ -123,6 +137,10 @@ int main(int argc, char** argv) {
   haptic->add_option("--duration", haptic_duration, "s in real time (default 10)")
       ->check(opts::positive(3600.0, "s"));
   haptic->add_flag("--json", json, "one JSON object on stdout");
+  int subscribers_help = 0;  // handled before parsing (main's first lines): listed for --help
+  haptic->add_option("--subscribers", subscribers_help,
+                     "N subscribers (half zenoh, half LCM) at a 120 Hz cloth rate: the period error "
+                     "against none, median of 3 off/on pairs, beside the platform timer");
 
   auto* timer = cli.add_subcommand(
       "timer", "the platform's wake-up latency at the haptic thread's scheduling, cyclictest-style "

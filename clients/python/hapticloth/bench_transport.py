@@ -101,8 +101,12 @@ def measure(transport, seconds, rate, port, lcm_url, mode):
 
 
 def run_transport(transport, seconds, rate, port, lcm_url):
-    return {"latency": measure(transport, seconds, rate, port, lcm_url, "hub"),
-            "throughput": measure(transport, seconds, rate, port, lcm_url, "raw")}
+    latency = measure(transport, seconds, rate, port, lcm_url, "hub")
+    timer = platform_timer(seconds)
+    latency["platform_timer"] = timer
+    if latency.get("latency_p99_us") is not None:
+        latency["latency_p99_excess_us"] = latency["latency_p99_us"] - timer["p99_us"]
+    return {"latency": latency, "throughput": measure(transport, seconds, rate, port, lcm_url, "raw")}
 
 
 def lcm_in_namespace(argv_rest, seconds, rate):
@@ -119,62 +123,15 @@ def lcm_in_namespace(argv_rest, seconds, rate):
     return json.loads(p.stdout.strip().splitlines()[-1])
 
 
-SUBSCRIBER = r"""
-import sys, time
-from hapticloth.client import Client
-c = Client("zenoh", server="bench", endpoint=sys.argv[1])
-for t in ("cloth", "haptics", "stats", "events"):
-    c.subscribe(t, lambda m: None, raw=True)
-print("ready", flush=True)
-time.sleep(float(sys.argv[2]))
-"""
-
-
-def haptic_impact(seconds, subscribers=4, cloth_rate=120.0, port=17600):
-    """The server's haptic period error with publishing off (--no-zenoh) and with `subscribers`
-    zenoh subscribers of every topic at `cloth_rate` Hz: the server's own loop statistics."""
-    server = find_binary("hapticloth-server")
-    scene = Path(__file__).resolve().parents[3] / "tools" / "scenes" / "hanging_square.toml"
-    out = {}
-    for label, extra in (("publishing_off", ["--no-zenoh"]),
-                         (f"{subscribers}_subscribers_{cloth_rate:g}hz",
-                          ["--zenoh-listen", f"tcp/127.0.0.1:{port}", "--cloth-rate", str(cloth_rate)])):
-        cmd = [server, "--scene", str(scene), "--device", "remote", "--json", "--name", "bench",
-               "--duration", str(seconds)] + extra
-        srv = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        subs = []
-        try:
-            if "--no-zenoh" not in extra:
-                deadline = time.monotonic() + 30
-                while True:  # wait for the server to answer (bounded)
-                    try:
-                        with Client("zenoh", server="bench", endpoint=f"tcp/127.0.0.1:{port}") as c:
-                            c.get_scene(timeout=1.0)
-                        break
-                    except Exception:
-                        if time.monotonic() > deadline or srv.poll() is not None:
-                            raise
-                        time.sleep(0.2)
-                for _ in range(subscribers):
-                    p = subprocess.Popen([sys.executable, "-c", SUBSCRIBER, f"tcp/127.0.0.1:{port}",
-                                          str(seconds + 30)], stdout=subprocess.PIPE, text=True)
-                    subs.append(p)
-                    p.stdout.readline()
-            o, e = srv.communicate(timeout=seconds + 60)
-        finally:
-            for p in subs:
-                p.kill()
-                p.wait()
-            if srv.poll() is None:
-                srv.kill()
-                srv.wait()
-        j = json.loads(o.strip().splitlines()[-1])
-        out[label] = {"period_error_p99_us": j["period_error_us"]["p99"],
-                      "period_error_p999_us": j["period_error_us"]["p999"],
-                      "period_error_max_us": j["period_error_us"]["max"],
-                      "missed_deadlines": j["missed_deadlines"], "ticks": j["haptic_ticks"],
-                      "realtime_scheduling": j.get("realtime_scheduling")}
-    return out
+def platform_timer(seconds):
+    """The platform's own wake-up latency (`hapticloth-bench timer`) over as many 1 kHz ticks as
+    a latency run has, measured right after it."""
+    bench = find_binary("hapticloth-bench")
+    p = subprocess.run([bench, "timer", "--ticks", str(max(1000, int(seconds * 1000))), "--json"],
+                       capture_output=True, text=True, timeout=seconds + 60)
+    if p.returncode != 0:
+        raise UserError(f"hapticloth-bench timer failed: {p.stderr.strip()[-300:]}")
+    return json.loads(p.stdout.strip().splitlines()[-1])
 
 
 TRANSPORTS = ("zenoh", "lcm")
@@ -187,8 +144,10 @@ def check_options(a):
                  low_open=True, unit=" s")
     check_number("--rate", a.rate, "a positive rate in Hz", 0.0, 100000.0, low_open=True, unit=" Hz")
     check_number("--port", a.port, "a tcp port from 1 to 65535", 1, 65535)
-    check_number("--haptic-seconds", a.haptic_seconds, "a number of seconds >= 0 (0: skip)", 0.0,
-                 3600.0, unit=" s")
+    if a.haptic_seconds is not None:
+        raise UserError("--haptic-seconds: the haptic loop with subscribers is measured by "
+                        "`hapticloth-bench haptic --subscribers N` now (median of 3 off/on pairs, "
+                        "half zenoh, half LCM, beside the platform timer)")
     for t in a.transports.split(","):
         if t not in TRANSPORTS:
             raise UserError(f"--transports: unknown transport {t!r} (known: {', '.join(TRANSPORTS)})")
@@ -205,8 +164,7 @@ def _main(argv):
     ap.add_argument("--rate", type=float, default=1000.0, help="Hz of cloth states for the latency runs")
     ap.add_argument("--port", type=int, default=17500, help="zenoh tcp port on 127.0.0.1")
     ap.add_argument("--transports", default="zenoh,lcm")
-    ap.add_argument("--haptic-seconds", type=float, default=10.0,
-                    help="seconds per server run of the haptic-impact measurement (0: skip it)")
+    ap.add_argument("--haptic-seconds", type=float, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--inner-lcm", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     check_options(a)
@@ -220,8 +178,6 @@ def _main(argv):
             res["zenoh"] = run_transport("zenoh", a.seconds, a.rate, a.port, url)
         elif t == "lcm":
             res["lcm"] = lcm_in_namespace(argv, a.seconds, a.rate)
-    if a.haptic_seconds > 0:
-        res["haptic_impact"] = haptic_impact(a.haptic_seconds)
     if a.json:
         print(json.dumps(res))
     else:
