@@ -1,6 +1,6 @@
 #include "log/device_log.hpp"
 
-#include "log/spsc_ring.hpp"
+#include "hal/rt_handoff.hpp"
 
 #include <cerrno>
 #include <chrono>

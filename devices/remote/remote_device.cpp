@@ -26,7 +26,7 @@ std::string RemoteDevice::configure() {
   proto.t.resize(kMaxPoints);
   proto.p.resize(kMaxPoints);
   slot_.clear();
-  for (int f = 0; f < opt_.fingers; ++f) slot_.push_back(std::make_unique<Latest<Plan>>(proto));
+  for (int f = 0; f < opt_.fingers; ++f) slot_.push_back(std::make_unique<TripleBuffer<Plan>>(proto));
   // Rest where the script (if any) or the demo trajectory starts, pulled inside the workspace.
   Trajectory start;
   try {

@@ -24,7 +24,7 @@
 #include "hal/device.hpp"
 #include "hal/options.hpp"
 #include "remote/command_sink.hpp"
-#include "remote/latest.hpp"
+#include "hal/rt_handoff.hpp"
 
 namespace hapticloth::devices {
 
@@ -74,7 +74,7 @@ class RemoteDevice final : public Device, public RemoteCommandSink {
   DeviceInfo info_;
   std::atomic<double> max_speed_{1.0};
   std::mutex submit_mu_;                          // writers of the slots (never the RT side)
-  std::vector<std::unique_ptr<Latest<Plan>>> slot_;  // per finger
+  std::vector<std::unique_ptr<TripleBuffer<Plan>>> slot_;  // per finger
   std::array<Follow, kMaxFingers> follow_{};
   std::array<std::array<std::atomic<double>, 3>, kMaxFingers> where_{};  // RT -> validation
   std::atomic<std::uint64_t> taken_{0};

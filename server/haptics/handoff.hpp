@@ -9,11 +9,13 @@
 #include <Eigen/Core>
 
 #include "hal/device.hpp"
+#include "hal/rt_handoff.hpp"
 
 namespace hapticloth::haptics {
 
 using Vec3 = Eigen::Vector3d;
 inline constexpr int kMaxFingers = devices::kMaxFingers;
+using devices::TripleBuffer;
 
 /// A fingertip proxy after a global step (direct coupling: solved with the cloth).
 struct ProxyResult {

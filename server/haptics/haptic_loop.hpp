@@ -18,7 +18,7 @@
 #include "haptics/patch_contact.hpp"
 #include "haptics/surface_contact.hpp"
 #include "haptics/stats.hpp"
-#include "haptics/triple_buffer.hpp"
+#include "hal/rt_handoff.hpp"
 
 namespace hapticloth::haptics {
 

@@ -15,7 +15,7 @@
 #include "haptics/kernel_coupling.hpp"
 #include "haptics/stats.hpp"
 #include "haptics/surface_contact.hpp"
-#include "haptics/triple_buffer.hpp"
+#include "hal/rt_handoff.hpp"
 
 namespace hapticloth::haptics {
 

@@ -34,7 +34,7 @@
 #include <vector>
 
 #include "haptics/observer.hpp"
-#include "haptics/triple_buffer.hpp"
+#include "hal/rt_handoff.hpp"
 #include "remote/command_sink.hpp"
 #include "transport/codec.hpp"
 #include "transport/options.hpp"

@@ -1,4 +1,4 @@
-// The haptic coupling (server/haptics): narrow phase, handoff, god-object proxies with friction,
+// The haptic coupling (server/haptics): narrow phase, god-object proxies with friction,
 // force shading, force distribution onto the cloth, and the scripted press / stroke / pinch /
 // lift / release with the mock device, all on the deterministic stepped clock.
 #include <gtest/gtest.h>
@@ -12,7 +12,6 @@
 #include "hal/handle.hpp"
 #include "haptics/geometry.hpp"
 #include "haptics/session.hpp"
-#include "haptics/triple_buffer.hpp"
 #include "mock/mock_device.hpp"
 #include "support/alloc_counter.hpp"
 #include "support/fixtures.hpp"
@@ -87,30 +86,6 @@ TEST(Geometry, ClosestPointOnTriangleRegions) {
   EXPECT_TRUE(cp.point.isApprox(Vec3(0.5, 0.5, 0), 1e-12));
   cp = haptics::closest_point_triangle(Vec3(0.5, -2, 1), a, b, c);  // edge ab
   EXPECT_TRUE(cp.point.isApprox(Vec3(0.5, 0, 0), 1e-12));
-}
-
-TEST(TripleBuffer, LatestValueWithoutLocksAcrossThreads) {
-  static_assert(haptics::TripleBuffer<int>::lock_free());
-  haptics::TripleBuffer<long> tb(0);
-  std::atomic<bool> done{false};
-  long seen_max = 0, regressions = 0;
-  std::thread reader([&] {
-    for (int i = 0; i < 2000000 && !done; ++i) {
-      if (tb.acquire()) {
-        if (tb.front() < seen_max) ++regressions;
-        seen_max = std::max(seen_max, tb.front());
-      }
-    }
-  });
-  for (long k = 1; k <= 200000; ++k) {
-    tb.back() = k;
-    tb.publish();
-  }
-  done = true;
-  reader.join();
-  EXPECT_EQ(regressions, 0);  // values only move forward
-  tb.acquire();
-  EXPECT_EQ(tb.front(), 200000);  // the newest is never lost
 }
 
 // Stroke: pressed, then sliding 4 cm along x. While the contact slides (every contact point
