@@ -41,6 +41,15 @@ struct DeviceInfo {
   double nominal_rate = 1000.0;    ///< Hz
 };
 
+/// A pinch needs two fingers; the HAL carries at most kMaxFingers.
+inline constexpr int kMinFingers = 2;
+inline bool valid_finger_count(int n) { return n >= kMinFingers && n <= kMaxFingers; }
+
+/// The one check of what a device says it is (every driver, the handle and the safety gate use
+/// it): empty if usable, else what is wrong, naming the field (`fingers`, `max_force`,
+/// `max_stiffness`, `nominal_rate`, `workspace`).
+std::string validate(const DeviceInfo& info);
+
 struct FingerState {
   Vec3 position = Vec3::Zero();  ///< m, device frame
   Vec3 velocity = Vec3::Zero();  ///< m/s, device frame

@@ -20,13 +20,8 @@ std::string DeviceHandle::configure() {
     state_ = Lifecycle::Failed;
     return error_;
   }
-  if (error_.empty()) {
-    const DeviceInfo& i = dev_->info();
-    if (i.fingers < 2 || i.fingers > kMaxFingers) error_ = "configure: a device needs 2 to 5 fingers";
-    else if (!(i.max_force > 0.0)) error_ = "configure: max_force must be > 0";
-    else if (!(i.nominal_rate > 0.0)) error_ = "configure: nominal_rate must be > 0";
-    else if (!(i.workspace.max.array() > i.workspace.min.array()).all()) error_ = "configure: empty workspace box";
-  }
+  if (error_.empty())
+    if (const std::string e = validate(dev_->info()); !e.empty()) error_ = "configure: " + e;
   if (error_.empty()) state_ = Lifecycle::Inactive;
   return error_;
 }

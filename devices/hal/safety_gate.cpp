@@ -11,13 +11,11 @@ SafetyGate::SafetyGate(const DeviceInfo& info, const GateConfig& cfg) : fingers_
   auto bad = [](const std::string& f) {
     throw std::invalid_argument("safety gate: " + f + " must be finite and > 0");
   };
-  if (!(info.max_force > 0.0) || !std::isfinite(info.max_force)) bad("device max_force");
+  if (const std::string e = validate(info); !e.empty()) throw std::invalid_argument("safety gate: device " + e);
   if (!(cfg.max_force >= 0.0) || !std::isfinite(cfg.max_force)) bad("max_force");
   if (!(cfg.slew_rate > 0.0) || !std::isfinite(cfg.slew_rate)) bad("slew_rate");
   if (!(cfg.watchdog > 0.0) || !std::isfinite(cfg.watchdog)) bad("watchdog");
   if (!(cfg.ramp_time > 0.0) || !std::isfinite(cfg.ramp_time)) bad("ramp_time");
-  if (!(info.nominal_rate > 0.0)) bad("device nominal_rate");
-  if (fingers_ < 1 || fingers_ > kMaxFingers) throw std::invalid_argument("safety gate: 1 to 5 fingers");
   max_force_ = cfg.max_force > 0.0 ? std::min(cfg.max_force, info.max_force) : info.max_force;
   slew_ = cfg.slew_rate;
   watchdog_ = cfg.watchdog;

@@ -11,7 +11,7 @@ MockDevice::MockDevice(const DeviceOptions& opt, Trajectory tr)
     : opt_(opt), info_(device_info(opt, "mock")), tr_(std::move(tr)), have_tr_(true) {}
 
 std::string MockDevice::configure() {
-  if (opt_.fingers < 2 || opt_.fingers > kMaxFingers) return "mock: fingers must be 2 to 5";
+  if (const std::string e = devices::validate(info_); !e.empty()) return "mock: " + e;
   try {
     if (!have_tr_) {
       tr_ = opt_.script.empty() ? demo_trajectory(opt_.fingers)

@@ -19,9 +19,7 @@ std::string fmt(const Vec3& p) {
 RemoteDevice::RemoteDevice(const DeviceOptions& opt) : opt_(opt), info_(device_info(opt, "remote")) {}
 
 std::string RemoteDevice::configure() {
-  if (opt_.fingers < 2 || opt_.fingers > kMaxFingers) return "remote: fingers must be 2 to 5";
-  if ((opt_.workspace.min.array() >= opt_.workspace.max.array()).any())
-    return "remote: the workspace box is empty";
+  if (const std::string e = devices::validate(info_); !e.empty()) return "remote: " + e;
   Plan proto;
   proto.t.resize(kMaxPoints);
   proto.p.resize(kMaxPoints);

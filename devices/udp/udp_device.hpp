@@ -92,7 +92,7 @@ class UdpDevice final : public Device {
 };
 
 /// The registry's factory for driver "udp". Throws std::invalid_argument naming `udp_bind` for
-/// a bad HOST:PORT (and `fingers` for a finger count outside 1..kMaxFingers).
+/// a bad HOST:PORT (and `fingers` for a finger count outside kMinFingers..kMaxFingers).
 std::unique_ptr<Device> make_udp_device(const DeviceOptions& opt);
 
 }  // namespace hapticloth::devices

@@ -123,8 +123,9 @@ void load_device(const TomlFile& f, const toml::table& t, const std::string& pat
     f.fail(t.get("driver"), "device.driver", "unknown driver '" + d.driver + "' (" + list + ")");
   }
   d.fingers = static_cast<int>(f.integer(t, "device", "fingers", d.fingers));
-  if (d.fingers < 2 || d.fingers > devices::kMaxFingers)
-    f.fail(t.get("fingers"), "device.fingers", "must be 2 to 5");
+  if (!devices::valid_finger_count(d.fingers))
+    f.fail(t.get("fingers"), "device.fingers",
+           "must be " + std::to_string(devices::kMinFingers) + " to " + std::to_string(devices::kMaxFingers));
   d.workspace.min = vec3(f, t, "device", "workspace_min", d.workspace.min);
   d.workspace.max = vec3(f, t, "device", "workspace_max", d.workspace.max);
   if (!(d.workspace.max.array() > d.workspace.min.array()).all())

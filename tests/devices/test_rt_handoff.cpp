@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <thread>
 
 #include "hal/rt_handoff.hpp"
@@ -47,23 +48,30 @@ TEST(SpscRing, FullRingRefusesAndOrderIsKept) {
   EXPECT_FALSE(ring.pop(v));
 }
 
+// Both sides are bounded by a 20 s deadline and yield when they cannot proceed: on 2 cores
+// under load either thread may be off the CPU for a long while.
 TEST(SpscRing, EveryItemArrivesOnceAcrossThreads) {
   devices::SpscRing<long> ring(64);
   const long n = 200000;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
   long sum = 0, got = 0, last = 0;
   bool ordered = true;
   std::thread consumer([&] {
     long v;
-    for (long spins = 0; got < n && spins < 100000000; ++spins)
-      if (ring.pop(v)) {
-        ordered = ordered && v == last + 1;
-        last = v;
-        sum += v;
-        ++got;
+    while (got < n && std::chrono::steady_clock::now() < deadline) {
+      if (!ring.pop(v)) {
+        std::this_thread::yield();
+        continue;
       }
+      ordered = ordered && v == last + 1;
+      last = v;
+      sum += v;
+      ++got;
+    }
   });
-  for (long k = 1, tries = 0; k <= n && tries < 100000000; ++tries)  // bounded, as the consumer
+  for (long k = 1; k <= n && std::chrono::steady_clock::now() < deadline;)
     if (ring.push(k)) ++k;
+    else std::this_thread::yield();
   consumer.join();
   EXPECT_EQ(got, n);
   EXPECT_TRUE(ordered);
