@@ -5,6 +5,8 @@
 // `hapticloth-bench fidelity` (BENCHMARKS.md, "Force fidelity").
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <memory>
@@ -268,6 +270,57 @@ inline PinchResult pinch_handkerchief(const PinchSpec& spec) {
   res.report = rig.session->report();
   res.max_penetration = res.report.max_penetration;
   return res;
+}
+
+// --- the drum rig of the session tests (tests/haptics/test_session.cpp, test_haptic_loop.cpp) ---
+
+// A horizontal 0.3 m square (z = 0) pinned on its four edges, 20 x 20 quads.
+inline cloth::ClothModel drum(int n = 20, double size = 0.3) { return denim_drum(n, size); }
+
+inline cloth::IntegratorConfig sim_config(double dt = 0.001) {
+  cloth::IntegratorConfig c;
+  c.dt = dt;
+  c.alpha = 1.0;
+  c.gravity = Vec3::Zero();
+  c.air_damping = 2.0;
+  return c;
+}
+
+// Drums start pre-stretched by 3% (a membrane without bending has no out-of-plane stiffness
+// when slack; tension gives it one, as on an embroidery hoop).
+inline cloth::ClothState drum_start_state(const cloth::ClothModel& m) {
+  cloth::ClothState s = cloth::rest_state(m);
+  int pinned = 0;
+  for (int i = 0; i < m.num_vertices(); ++i) pinned += m.pinned[i];
+  const int n = static_cast<int>(std::lround(std::sqrt(m.num_vertices()))) - 1;  // quads a side
+  if (pinned == 4 * n)  // every boundary vertex: a drum
+    for (auto& x : s.x) x.head<2>() *= 1.03;
+  return s;
+}
+
+/// A drum (or any cloth) with the mock device following `tr`, direct coupling, CHOLMOD, stepped.
+struct DrumRig {
+  cloth::ClothModel model;
+  devices::DeviceHandle dev;
+  std::unique_ptr<haptics::Session> session;
+  DrumRig(cloth::ClothModel m, devices::Trajectory tr, haptics::SessionConfig sc = {},
+      cloth::IntegratorConfig ic = sim_config())
+      : model(std::move(m)),
+        dev(std::make_unique<devices::MockDevice>(touch_device_options(), std::move(tr))) {
+    EXPECT_EQ(dev.configure(), "");
+    sc.gate.slew_rate = 1e4;
+    sc.gate.ramp_time = 1e-3;
+    session = std::make_unique<haptics::Session>(model, ic, cloth::make_cholmod_solver(),
+                                                 drum_start_state(model), dev, sc);
+  }
+};
+
+// Two fingers: finger 0 follows `f0`, finger 1 parked far from the cloth.
+inline devices::Trajectory one_finger(const std::vector<std::pair<double, Vec3>>& f0) {
+  devices::Trajectory t(2);
+  for (const auto& [time, p] : f0) t.add(0, time, p);
+  t.add(1, 0.0, Vec3(0.15, 0.15, 0.15));
+  return t;
 }
 
 }  // namespace hapticloth::test

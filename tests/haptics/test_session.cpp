@@ -1,6 +1,6 @@
-// The haptic coupling (server/haptics): narrow phase, god-object proxies with friction,
-// force shading, force distribution onto the cloth, and the scripted press / stroke / pinch /
-// lift / release with the mock device, all on the deterministic stepped clock.
+// The touch end to end (server/haptics/session): the scripted stroke, press, pinch, lift and
+// release with the mock device against membrane and Coulomb physics, force shading, fig. 8 and
+// the multirate path's continuity, all on the deterministic stepped clock.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -20,73 +20,11 @@
 using namespace hapticloth;
 using haptics::Vec3;
 
-namespace {
+using test::drum;
+using test::one_finger;
+using test::sim_config;
+using Rig = test::DrumRig;
 
-// A horizontal 0.3 m square (z = 0) pinned on its four edges, 20 x 20 quads.
-cloth::ClothModel drum(int n = 20, double size = 0.3) { return test::denim_drum(n, size); }
-
-cloth::IntegratorConfig sim_config(double dt = 0.001) {
-  cloth::IntegratorConfig c;
-  c.dt = dt;
-  c.alpha = 1.0;
-  c.gravity = Vec3::Zero();
-  c.air_damping = 2.0;
-  return c;
-}
-
-devices::DeviceOptions mock_options() { return test::touch_device_options(); }
-
-// Drums start pre-stretched by 3% (a membrane without bending has no out-of-plane stiffness
-// when slack; tension gives it one, as on an embroidery hoop).
-cloth::ClothState start_state(const cloth::ClothModel& m) {
-  cloth::ClothState s = cloth::rest_state(m);
-  int pinned = 0;
-  for (int i = 0; i < m.num_vertices(); ++i) pinned += m.pinned[i];
-  const int n = static_cast<int>(std::lround(std::sqrt(m.num_vertices()))) - 1;  // quads a side
-  if (pinned == 4 * n)  // every boundary vertex: a drum
-    for (auto& x : s.x) x.head<2>() *= 1.03;
-  return s;
-}
-
-struct Rig {
-  cloth::ClothModel model;
-  devices::DeviceHandle dev;
-  std::unique_ptr<haptics::Session> session;
-  Rig(cloth::ClothModel m, devices::Trajectory tr, haptics::SessionConfig sc = {},
-      cloth::IntegratorConfig ic = sim_config())
-      : model(std::move(m)),
-        dev(std::make_unique<devices::MockDevice>(mock_options(), std::move(tr))) {
-    EXPECT_EQ(dev.configure(), "");
-    sc.gate.slew_rate = 1e4;
-    sc.gate.ramp_time = 1e-3;
-    session = std::make_unique<haptics::Session>(model, ic, cloth::make_cholmod_solver(),
-                                                 start_state(model), dev, sc);
-  }
-};
-
-// Two fingers: finger 0 follows `f0`, finger 1 parked far from the cloth.
-devices::Trajectory one_finger(const std::vector<std::pair<double, Vec3>>& f0) {
-  devices::Trajectory t(2);
-  for (const auto& [time, p] : f0) t.add(0, time, p);
-  t.add(1, 0.0, Vec3(0.15, 0.15, 0.15));
-  return t;
-}
-
-}  // namespace
-
-TEST(Geometry, ClosestPointOnTriangleRegions) {
-  const Vec3 a(0, 0, 0), b(1, 0, 0), c(0, 1, 0);
-  auto cp = haptics::closest_point_triangle(Vec3(0.2, 0.2, 0.5), a, b, c);  // face
-  EXPECT_TRUE(cp.point.isApprox(Vec3(0.2, 0.2, 0), 1e-12));
-  EXPECT_NEAR(cp.dist2, 0.25, 1e-12);
-  EXPECT_NEAR(cp.b[0] + cp.b[1] + cp.b[2], 1.0, 1e-12);
-  cp = haptics::closest_point_triangle(Vec3(-1, -1, 0), a, b, c);  // vertex a
-  EXPECT_EQ(cp.point, a);
-  cp = haptics::closest_point_triangle(Vec3(1, 1, 0), a, b, c);  // edge bc
-  EXPECT_TRUE(cp.point.isApprox(Vec3(0.5, 0.5, 0), 1e-12));
-  cp = haptics::closest_point_triangle(Vec3(0.5, -2, 1), a, b, c);  // edge ab
-  EXPECT_TRUE(cp.point.isApprox(Vec3(0.5, 0, 0), 1e-12));
-}
 
 // Stroke: pressed, then sliding 4 cm along x. While the contact slides (every contact point
 // slipping), each contact's friction is mu x its normal force (Coulomb per contact: the sums of
@@ -274,43 +212,6 @@ TEST(Haptics, PinchLiftAndRelease) {
   EXPECT_LT(z_released, z_lifted - 0.005);         // falls back once released
 }
 
-// The haptic tick allocates nothing (device read/write, narrow phase, local patch or response
-// model, proxy, gate, handoff), also on the ticks after a global step's hand-over.
-class TickAllocation : public ::testing::TestWithParam<haptics::Rendering> {};
-
-TEST_P(TickAllocation, TickAllocatesNothing) {
-  const double r = 0.008;
-  haptics::SessionConfig sc;
-  sc.local_patch = GetParam() != haptics::Rendering::Direct;
-  sc.local_model = GetParam() == haptics::Rendering::Patch ? haptics::LocalModel::Patch
-                                                           : haptics::LocalModel::Response;
-  cloth::IntegratorConfig ic = sim_config(sc.local_patch ? 0.02 : 1e-3);
-  // Pressing from the first tick (the script restarts when the device is reactivated).
-  Rig rig(drum(), one_finger({{0.0, Vec3(0.003, 0.002, r - 0.003)}, {1.0, Vec3(0.013, 0.002, r - 0.003)}}), sc, ic);
-  auto& s = *rig.session;
-  std::uint64_t allocs = 0, contact = 0;
-  s.run_stepped(1.0, 0.0, [&](const haptics::HapticLoop&, const haptics::SimWorker&) {});
-  // Now tick the haptic loop alone under the guard, at the state reached (in contact), with a
-  // global step every 20 ticks.
-  rig.dev.activate();
-  auto& h = s.haptics();
-  for (int k = 0; k < 500; ++k) {
-    if (sc.local_patch && k % 20 == 0) s.sim().step(1.0 + 0.001 * k);
-    test::AllocationGuard guard;
-    h.tick(1.0 + 0.001 * k);
-    allocs += guard.count();
-    contact += h.last_report().finger[0].in_contact;
-  }
-  EXPECT_EQ(allocs, 0u);
-  EXPECT_GT(contact, 400u);
-  if (GetParam() == haptics::Rendering::Patch) {
-    EXPECT_GE(h.patch_rebuilds(), 1u);
-  }
-}
-
-INSTANTIATE_TEST_SUITE_P(EachRendering, TickAllocation,
-                         ::testing::Values(haptics::Rendering::Direct, haptics::Rendering::Patch,
-                                           haptics::Rendering::Response));
 
 // The multirate path (4.2): with the global simulation at 25 Hz, the force the user feels does
 // not jump when the global state updates (at most 10% of the contact force) with either local

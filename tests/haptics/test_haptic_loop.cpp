@@ -1,0 +1,51 @@
+// The haptic tick (server/haptics/haptic_loop): real-time safe, it allocates nothing.
+#include <gtest/gtest.h>
+
+#include "haptics/session.hpp"
+#include "support/alloc_counter.hpp"
+#include "support/touch_scenes.hpp"
+
+using namespace hapticloth;
+using haptics::Vec3;
+using test::drum;
+using test::one_finger;
+using test::sim_config;
+using Rig = test::DrumRig;
+
+// The haptic tick allocates nothing (device read/write, narrow phase, local patch or response
+// model, proxy, gate, handoff), also on the ticks after a global step's hand-over.
+class TickAllocation : public ::testing::TestWithParam<haptics::Rendering> {};
+
+TEST_P(TickAllocation, TickAllocatesNothing) {
+  const double r = 0.008;
+  haptics::SessionConfig sc;
+  sc.local_patch = GetParam() != haptics::Rendering::Direct;
+  sc.local_model = GetParam() == haptics::Rendering::Patch ? haptics::LocalModel::Patch
+                                                           : haptics::LocalModel::Response;
+  cloth::IntegratorConfig ic = sim_config(sc.local_patch ? 0.02 : 1e-3);
+  // Pressing from the first tick (the script restarts when the device is reactivated).
+  Rig rig(drum(), one_finger({{0.0, Vec3(0.003, 0.002, r - 0.003)}, {1.0, Vec3(0.013, 0.002, r - 0.003)}}), sc, ic);
+  auto& s = *rig.session;
+  std::uint64_t allocs = 0, contact = 0;
+  s.run_stepped(1.0, 0.0, [&](const haptics::HapticLoop&, const haptics::SimWorker&) {});
+  // Now tick the haptic loop alone under the guard, at the state reached (in contact), with a
+  // global step every 20 ticks.
+  rig.dev.activate();
+  auto& h = s.haptics();
+  for (int k = 0; k < 500; ++k) {
+    if (sc.local_patch && k % 20 == 0) s.sim().step(1.0 + 0.001 * k);
+    test::AllocationGuard guard;
+    h.tick(1.0 + 0.001 * k);
+    allocs += guard.count();
+    contact += h.last_report().finger[0].in_contact;
+  }
+  EXPECT_EQ(allocs, 0u);
+  EXPECT_GT(contact, 400u);
+  if (GetParam() == haptics::Rendering::Patch) {
+    EXPECT_GE(h.patch_rebuilds(), 1u);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(EachRendering, TickAllocation,
+                         ::testing::Values(haptics::Rendering::Direct, haptics::Rendering::Patch,
+                                           haptics::Rendering::Response));
