@@ -50,11 +50,7 @@ Status MockDevice::read(double now, DeviceState& state) noexcept {
   if (!std::isfinite(now)) return Status::Error;
   if (t0_ < 0.0) t0_ = now;
   const double t = now - t0_;
-  for (int f = 0; f < info_.fingers; ++f)
-    tr_.evaluate(f, t, last_.finger[f].position, last_.finger[f].velocity);
-  last_.device_time = t;
-  last_.received_time = now;
-  ++last_.sequence;
+  tr_.sample(info_.fingers, t, now, last_);
   ++counters_.samples;
   state = last_;
   return Status::Ok;

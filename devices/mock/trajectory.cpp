@@ -20,6 +20,13 @@ void Trajectory::add(int finger, double t, const Vec3& p) {
   k.push_back({t, p});
 }
 
+void Trajectory::sample(int fingers, double t, double now, DeviceState& s) const noexcept {
+  for (int f = 0; f < fingers; ++f) evaluate(f, t, s.finger[f].position, s.finger[f].velocity);
+  s.device_time = t;
+  s.received_time = now;
+  ++s.sequence;
+}
+
 void Trajectory::evaluate(int finger, double t, Vec3& p, Vec3& v) const noexcept {
   v.setZero();
   if (finger < 0 || finger >= fingers() || keys_[finger].empty()) {

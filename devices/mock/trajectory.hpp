@@ -23,6 +23,9 @@ class Trajectory {
   void add(int finger, double t, const Vec3& p);
   /// Position and velocity at time t (clamped to the first/last keyframe: at rest outside).
   void evaluate(int finger, double t, Vec3& p, Vec3& v) const noexcept;
+  /// The next sample of a device that plays this trajectory: every finger at script time t,
+  /// read at loop time `now` (the mock and the replay device).
+  void sample(int fingers, double t, double now, DeviceState& s) const noexcept;
   double duration() const;
   const std::vector<Keyframe>& keys(int finger) const { return keys_[finger]; }
   /// Throws std::invalid_argument naming the first keyframe outside the box.

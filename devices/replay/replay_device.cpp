@@ -39,11 +39,7 @@ Status ReplayDevice::read(double now, DeviceState& state) noexcept {
   if (t0_ < 0.0) t0_ = now;
   // Log times are relative to the log's own first sample.
   const double t = now - t0_ + (rows_.empty() || rows_[0].empty() ? 0.0 : rows_[0].front().time);
-  for (int f = 0; f < info_.fingers; ++f)
-    positions_.evaluate(f, t, last_.finger[f].position, last_.finger[f].velocity);
-  last_.device_time = t;
-  last_.received_time = now;
-  ++last_.sequence;
+  positions_.sample(info_.fingers, t, now, last_);
   ++counters_.samples;
   state = last_;
   return Status::Ok;

@@ -6,18 +6,13 @@
 
 #include "hal/safety_gate.hpp"
 #include "support/alloc_counter.hpp"
+#include "support/devices.hpp"
 
 using namespace hapticloth::devices;
+using hapticloth::test::two_fingers;
 
 namespace {
 
-DeviceInfo two_fingers(double max_force = 4.0) {
-  DeviceInfo i;
-  i.name = "test";
-  i.fingers = 2;
-  i.max_force = max_force;
-  return i;
-}
 
 // Runs the gate at 1 kHz with fresh state for n ticks from t, returning the last output.
 DeviceCommand run(SafetyGate& g, double& t, int n, const DeviceCommand& in, bool fresh = true) {

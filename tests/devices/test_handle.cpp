@@ -6,18 +6,11 @@
 #include <memory>
 
 #include "hal/handle.hpp"
+#include "support/devices.hpp"
 
 using namespace hapticloth::devices;
+using hapticloth::test::two_fingers;
 
-namespace {
-DeviceInfo two_fingers(double max_force = 4.0) {
-  DeviceInfo i;
-  i.name = "test";
-  i.fingers = 2;
-  i.max_force = max_force;
-  return i;
-}
-}  // namespace
 
 TEST(DeviceInfoCheck, NamesTheFieldThatIsWrong) {
   EXPECT_EQ(validate(two_fingers()), "");
