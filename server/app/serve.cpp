@@ -24,7 +24,7 @@ namespace hapticloth::app {
 
 namespace {
 
-// What the scene needs, and why (issue: skip what the scene doesn't need).
+// What the scene needs, and why: one short line per stage.
 std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, double step_ms,
                                 double haptic_period_ms) {
   std::vector<std::string> s;
@@ -34,15 +34,13 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
   if (sc.haptics.local_patch && sc.haptics.local_model == haptics::LocalModel::Response) {
     os << "multirate, local model response (" << (sc.local_patch == "on" ? "asked for" : "the global step")
        << " " << step_ms << " ms median at start-up vs the " << haptic_period_ms
-       << " ms haptic period): the fingertips are spheres solved with the whole cloth at each "
-       << sc.integrator.dt * 1e3 << " ms global step, which hands the haptic loop its linear response"
-       << " to both fingertips; a contact starts at the next global step (docs/contact.md)";
+       << " ms haptic period): fingertips solved with the cloth every " << sc.integrator.dt * 1e3
+       << " ms, rendered between steps from the cloth's linear response (docs/contact.md)";
   } else if (sc.haptics.local_patch) {
     os << "multirate, local model patch (" << (sc.local_patch == "on" ? "asked for" : "the global step")
        << " " << step_ms << " ms median at start-up vs the " << haptic_period_ms
-       << " ms haptic period): a subdivided patch per fingertip runs at the haptic rate."
-       << " Limits (BENCHMARKS.md): a pinch is not held (each fingertip pushes its own patch),"
-       << " and the global cloth that renderers see trails the fingertip by up to about 5 mm";
+       << " ms haptic period): a subdivided patch per fingertip at the haptic rate; it does not"
+       << " hold a pinch (BENCHMARKS.md)";
   } else if (fits) {
     os << "direct coupling, no local patch: the global step takes " << step_ms
        << " ms (median at start-up), within the " << haptic_period_ms
@@ -57,12 +55,9 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
     std::ostringstream a;
     a << "alpha " << sc.integrator.alpha;
     if (sc.haptics.local_patch && sc.haptics.local_model == haptics::LocalModel::Patch)
-      a << " < 1 with the patch model: on stiff cloth this abandons steps (hapticloth-bench"
-        << " stability, BENCHMARKS.md); the integrator switches to alpha 1 at the first energy"
-        << " explosion, and alpha 1 is the recommended setting here";
+      a << " < 1 with the patch model: alpha 1 from the first energy explosion on (BENCHMARKS.md)";
     else  // the proxies are solved with the cloth (direct coupling, response model)
-      a << " < 1 asked for, alpha 1 used: the fingertip contacts are stiff springs in the implicit"
-        << " step, which only backward Euler damps (docs/contact.md)";
+      a << " < 1 asked for, alpha 1 used for the fingertips' stiff contacts (docs/contact.md)";
     s.push_back(a.str());
   }
   s.push_back(sc.material.viscous() ? "strain-rate (viscous) terms on: the material has viscosity"
@@ -73,32 +68,41 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
   return s;
 }
 
-}  // namespace
+// The device's dropped-packet total, handed to the Hub (which publishes an event when it grows)
+// from the haptic thread, the thread that also writes the counters.
+struct DropReporter : haptics::SessionObserver {
+  const devices::Device* dev = nullptr;
+  transport::Hub* hub = nullptr;
+  void on_loop_stats(const haptics::LoopStats&) noexcept override {
+    if (hub && dev) hub->note_dropped_packets(dev->counters().dropped_total());
+  }
+};
 
-int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
-  const cloth::ClothModel model = build_model(scene);
-  const double duration = opt.duration > 0.0 ? opt.duration : scene.duration;
+// What serve() runs: the settled cloth, the session's settings and the stage lines.
+struct Plan {
+  cloth::ClothState state;
+  haptics::SessionConfig session;
+  std::vector<std::string> stages;
+};
 
-  // The device first (a UDP rig can start streaming while the cloth settles).
-  devices::DeviceHandle dev(devices::make_device(scene.device));
-  if (const std::string e = dev.configure(); !e.empty()) throw ConfigError("device: " + e);
-
-  // Settle (preroll) as fast as possible, and measure the global step.
-  cloth::ClothState state = cloth::rest_state(model);
+// Settles the scene for its preroll as fast as possible, measuring the global step; chooses the
+// coupling from it (scene.integrator.dt may be shortened to the haptic period) and says why.
+Plan plan(Scene& scene, const cloth::ClothModel& model, const devices::DeviceHandle& dev,
+          const std::atomic<bool>* stop) {
+  Plan p{cloth::rest_state(model), scene.haptics, {}};
   std::vector<double> step_ms;
   {
     auto integ = make_integrator(scene, model);
     const long n = std::max(20L, std::lround(scene.preroll / scene.integrator.dt));
-    for (long k = 0; k < n && !(opt.stop && opt.stop->load()); ++k) {
-      integ->step(state);
+    for (long k = 0; k < n && !(stop && stop->load()); ++k) {
+      integ->step(p.state);
       step_ms.push_back(integ->last_timing().total_ms);
     }
-    state.time = 0.0;
+    p.state.time = 0.0;
   }
   std::sort(step_ms.begin(), step_ms.end());
   const double median_ms = step_ms[step_ms.size() / 2];
-
-  haptics::SessionConfig sc = scene.haptics;
+  haptics::SessionConfig& sc = p.session;
   scene.haptics.local_patch = sc.local_patch =
       scene.local_patch == "on" || (scene.local_patch == "auto" && median_ms > 1000.0 / sc.haptic_rate);
   // Direct coupling renders the force of the last global step (the fingertips are solved with
@@ -109,99 +113,101 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   if (!sc.local_patch && scene.integrator.dt > period * (1.0 + 1e-9)) {
     std::ostringstream os;
     os << "global dt " << scene.integrator.dt * 1e3 << " ms shortened to the haptic period "
-       << period * 1e3 << " ms: direct coupling renders the force of each global step";
+       << period * 1e3 << " ms (direct coupling renders each global step's force)";
     dt_note = os.str();
     scene.integrator.dt = period;
   }
-  haptics::Session session(model, scene.integrator, cloth::make_solver(scene.solver, scene.pcg),
-                           state, dev, sc);
-  session.set_stop_flag(opt.stop);
-  auto st = stages(scene, model, median_ms, 1000.0 / sc.haptic_rate);
-  if (!dt_note.empty()) st.insert(st.begin() + 1, dt_note);
+  p.stages = stages(scene, model, median_ms, 1000.0 / sc.haptic_rate);
+  if (!dt_note.empty()) p.stages.insert(p.stages.begin() + 1, dt_note);
   if (sc.finger.stiffness > dev.info().max_stiffness) {
     std::ostringstream os;
     os << "coupling stiffness " << sc.finger.stiffness << " N/m clamped to the device's max_stiffness "
        << dev.info().max_stiffness << " N/m ([haptics] stiffness)";
-    st.insert(st.begin() + 1, os.str());
+    p.stages.insert(p.stages.begin() + 1, os.str());
   }
+  return p;
+}
 
-  // --- transport: the Hub publishes the session over zenoh / LCM and feeds the remote device
+// The Hub that publishes the session over zenoh / LCM and feeds a remote device; without
+// zenoh (and says so) when its endpoint cannot be opened and zenoh is not required.
+std::unique_ptr<transport::Hub> connect_transport(const Scene& scene, const ServeOptions& opt,
+                                                  const haptics::SessionConfig& sc,
+                                                  devices::DeviceHandle& dev, haptics::Session& session,
+                                                  DropReporter& drops, std::ostream& out) {
+  transport::SceneInfo info;
+  transport::set_cloth(info, scene.mesh, scene.material);
+  info.scene_name = scene.name;
+  info.device = dev.info();
+  info.device_rotation = sc.mapping.R;
+  info.device_origin = sc.mapping.origin;
+  info.haptic_rate = sc.haptic_rate;
+  transport::TransportOptions to = opt.transport;
   std::unique_ptr<transport::Hub> hub;
-  // The device's dropped-packet total, handed to the Hub (which publishes an event when it
-  // grows) from the haptic thread, the thread that also writes the counters.
-  struct DropReporter : haptics::SessionObserver {
-    const devices::Device* dev = nullptr;
-    transport::Hub* hub = nullptr;
-    void on_loop_stats(const haptics::LoopStats&) noexcept override {
-      if (hub && dev) hub->note_dropped_packets(dev->counters().dropped_total());
-    }
-  } drops;
-  {
-    transport::SceneInfo info;
-    transport::set_cloth(info, scene.mesh, scene.material);
-    info.scene_name = scene.name;
-    info.device = dev.info();
-    info.device_rotation = sc.mapping.R;
-    info.device_origin = sc.mapping.origin;
-    info.haptic_rate = sc.haptic_rate;
-    transport::TransportOptions to = opt.transport;
-    try {
-      hub = transport::make_hub(to, info);
-    } catch (const std::runtime_error& e) {
-      if (opt.transport_required || !to.zenoh) throw;
-      std::cerr << "hapticloth-server: " << e.what() << "; running without zenoh\n";
-      to.zenoh = false;
-      hub = transport::make_hub(to, info);
-    }
-    if (auto* sink = dynamic_cast<devices::RemoteCommandSink*>(&dev.device())) hub->set_command_sink(sink);
-    drops.dev = &dev.device();
-    drops.hub = hub.get();
-    session.add_observer(hub.get());
-    session.add_observer(&drops);
-    hub->post_event("started", "scene " + scene.name + ", device " + dev.info().name);
-    if (!opt.json) {
-      const auto& o = hub->options();
-      out << "transport        zenoh " << (o.zenoh && to.zenoh ? "hapticloth/" + o.server_name + "/* on " +
-                                                   (o.zenoh_config.empty() ? o.zenoh_listen : o.zenoh_config)
-                                                : std::string("off"))
-          << ", LCM " << (o.lcm_url.empty() ? "off" : o.lcm_url) << ", log "
-          << (o.lcm_log.empty() ? "off" : o.lcm_log) << "\n";
-    }
+  try {
+    hub = transport::make_hub(to, info);
+  } catch (const std::runtime_error& e) {
+    if (opt.transport_required || !to.zenoh) throw;
+    std::cerr << "hapticloth-server: " << e.what() << "; running without zenoh\n";
+    to.zenoh = false;
+    hub = transport::make_hub(to, info);
   }
-  // --- end transport
+  if (auto* sink = dynamic_cast<devices::RemoteCommandSink*>(&dev.device())) hub->set_command_sink(sink);
+  drops.dev = &dev.device();
+  drops.hub = hub.get();
+  session.add_observer(hub.get());
+  session.add_observer(&drops);
+  hub->post_event("started", "scene " + scene.name + ", device " + dev.info().name);
+  if (!opt.json) {
+    const auto& o = hub->options();
+    out << "transport        zenoh " << (o.zenoh && to.zenoh ? "hapticloth/" + o.server_name + "/* on " +
+                                                 (o.zenoh_config.empty() ? o.zenoh_listen : o.zenoh_config)
+                                              : std::string("off"))
+        << ", LCM " << (o.lcm_url.empty() ? "off" : o.lcm_url) << ", log "
+        << (o.lcm_log.empty() ? "off" : o.lcm_log) << "\n";
+  }
+  return hub;
+}
 
+// Prints what runs, runs the session, and returns how a stop signal ended it ("" if none).
+std::string run(const Scene& scene, const ServeOptions& opt, const cloth::ClothModel& model,
+                const devices::DeviceHandle& dev, const Plan& p, double duration,
+                haptics::Session& session, transport::Hub& hub, std::ostream& out) {
   if (!opt.json) {
     out << "scene            " << scene.name << " (" << model.num_triangles() << " triangles)\n";
     out << "device           " << dev.info().name << ", " << dev.info().fingers << " fingers, max "
         << dev.info().max_force << " N\n";
     out << "clock            " << (opt.realtime ? "real time" : "stepped (as fast as possible)")
         << ", " << duration << " s after " << scene.preroll << " s preroll\n";
-    for (const auto& s : st) out << "stage            " << s << "\n";
+    for (const auto& s : p.stages) out << "stage            " << s << "\n";
     out.flush();
   }
   if (opt.realtime) session.run_realtime(duration);
   else session.run_stepped(duration);
-  std::string stopped;
-  if (opt.stop && opt.stop->load()) {
-    std::ostringstream os;
-    os << "by " << (stop_signal() == SIGTERM ? "SIGTERM" : "SIGINT") << " after " << std::fixed
-       << std::setprecision(3) << session.report().sim_time << " s of " << duration << " s";
-    stopped = os.str();
-    if (hub) hub->post_event("stopping", "server stops on a signal: " + stopped);
-  }
+  if (!(opt.stop && opt.stop->load())) return "";
+  std::ostringstream os;
+  os << "by " << (stop_signal() == SIGTERM ? "SIGTERM" : "SIGINT") << " after " << std::fixed
+     << std::setprecision(3) << session.report().sim_time << " s of " << duration << " s";
+  hub.post_event("stopping", "server stops on a signal: " + os.str());
+  return os.str();
+}
 
+// The summary: the session's report with the device's, the gate's, the cloth's and the
+// transport's counters, as text or one JSON object.
+void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHandle& dev,
+            const Plan& p, haptics::Session& session, const transport::Hub& hub,
+            const std::string& stopped, std::ostream& out) {
   const haptics::SessionReport r = session.report();
   const auto& dc = dev.device().counters();
   const std::string& record = scene.device.record_path;
   const std::string record_error = dev.last_error();
   const auto& gc = session.gate().counters();
   const auto& ev = session.sim().integrator().events();
-  const transport::HubStats hs = hub->stats();
+  const transport::HubStats hs = hub.stats();
   if (opt.json) {
     nlohmann::json j = nlohmann::json::parse(r.to_json());
     j["scene"] = scene.name;
     j["device"] = dev.info().name;
-    j["stages"] = st;
+    j["stages"] = p.stages;
     j["device_counters"] = {{"samples", dc.samples}, {"dropped", dc.dropped_total()},
                             {"send_errors", dc.send_errors}};
     if (!record.empty())
@@ -213,21 +219,41 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
     j["trajectory_commands"] = {{"accepted", hs.commands_accepted}, {"rejected", hs.commands_rejected}};
     j["stopped"] = stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(stopped);
     out << j.dump() << "\n";
-  } else {
-    out << r.to_text();
-    out << "device counters  samples " << dc.samples << ", dropped " << dc.dropped_total()
-        << " (malformed " << dc.dropped_malformed << ", version " << dc.dropped_version
-        << ", duplicate " << dc.dropped_duplicate << ", reordered " << dc.dropped_reordered
-        << ", out of range " << dc.dropped_out_of_range << ")\n";
-    out << "safety gate      non-finite " << gc.non_finite << ", clamped " << gc.clamped
-        << ", slew-limited " << gc.slew_limited << ", stale events " << gc.stale_events << "\n";
-    out << "cloth events     " << ev.total() << "\n";
-    out << "trajectory cmds  accepted " << hs.commands_accepted << ", rejected " << hs.commands_rejected << "\n";
-    if (!record.empty())
-      out << "device record    " << record << ": " << dc.record_rows << " rows, " << dc.record_dropped
-          << " dropped (buffer full)" << (record_error.empty() ? "" : ", " + record_error) << "\n";
-    if (!stopped.empty()) out << "stopped          " << stopped << "\n";
+    return;
   }
+  out << r.to_text();
+  out << "device counters  samples " << dc.samples << ", dropped " << dc.dropped_total()
+      << " (malformed " << dc.dropped_malformed << ", version " << dc.dropped_version
+      << ", duplicate " << dc.dropped_duplicate << ", reordered " << dc.dropped_reordered
+      << ", out of range " << dc.dropped_out_of_range << ")\n";
+  out << "safety gate      non-finite " << gc.non_finite << ", clamped " << gc.clamped
+      << ", slew-limited " << gc.slew_limited << ", stale events " << gc.stale_events << "\n";
+  out << "cloth events     " << ev.total() << "\n";
+  out << "trajectory cmds  accepted " << hs.commands_accepted << ", rejected " << hs.commands_rejected << "\n";
+  if (!record.empty())
+    out << "device record    " << record << ": " << dc.record_rows << " rows, " << dc.record_dropped
+        << " dropped (buffer full)" << (record_error.empty() ? "" : ", " + record_error) << "\n";
+  if (!stopped.empty()) out << "stopped          " << stopped << "\n";
+}
+
+}  // namespace
+
+// Plan, build, run, report.
+int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
+  const cloth::ClothModel model = build_model(scene);
+  const double duration = opt.duration > 0.0 ? opt.duration : scene.duration;
+  // The device first (a UDP rig can start streaming while the cloth settles).
+  devices::DeviceHandle dev(devices::make_device(scene.device));
+  if (const std::string e = dev.configure(); !e.empty()) throw ConfigError("device: " + e);
+  const Plan p = plan(scene, model, dev, opt.stop);
+  haptics::Session session(model, scene.integrator, cloth::make_solver(scene.solver, scene.pcg),
+                           p.state, dev, p.session);
+  session.set_stop_flag(opt.stop);
+  DropReporter drops;
+  const auto hub = connect_transport(scene, opt, p.session, dev, session, drops, out);
+  const std::string stopped = run(scene, opt, model, dev, p, duration, session, *hub, out);
+  report(scene, opt, dev, p, session, *hub, stopped, out);
+  const std::string record_error = dev.last_error();
   if (!record_error.empty()) std::cerr << "hapticloth-server: " << record_error << "\n";
   return dev.failed_since_activation() || !record_error.empty() ? 1 : 0;
 }
