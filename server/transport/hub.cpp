@@ -90,29 +90,14 @@ Hub::Hub(const TransportOptions& opt, SceneInfo scene)
       zpub_[t] = std::make_unique<ZenohPublisher>(*zenoh_, key_expression(opt_.server_name, kTopicNames[t]));
     zcmd_ = std::make_unique<ZenohSubscriber>(
         *zenoh_, key_expression(opt_.server_name, "trajectory"),
-        [this](const std::uint8_t* d, std::size_t n) {
-          hapticloth::trajectory_cmd_t m;
-          if (decode(d, n, m)) {
-            handle_command(m);
-          } else {
-            rejected_.fetch_add(1);
-            post_event("command_rejected", "malformed trajectory_cmd_t (" + std::to_string(n) + " bytes)");
-          }
-        });
+        [this](const std::uint8_t* d, std::size_t n) { on_command_bytes(d, n); });
     zscene_ = std::make_unique<ZenohQueryable>(*zenoh_, key_expression(opt_.server_name, "scene"),
                                                [this] { return scene_bytes(); });
   }
   if (!opt_.lcm_url.empty()) {
     lcm_ = std::make_unique<LcmBus>(opt_.lcm_url);
-    lcm_->subscribe(lcm_channel("trajectory"), [this](const std::uint8_t* d, std::size_t n) {
-      hapticloth::trajectory_cmd_t m;
-      if (decode(d, n, m)) {
-        handle_command(m);
-      } else {
-        rejected_.fetch_add(1);
-        post_event("command_rejected", "malformed trajectory_cmd_t (" + std::to_string(n) + " bytes)");
-      }
-    });
+    lcm_->subscribe(lcm_channel("trajectory"),
+                    [this](const std::uint8_t* d, std::size_t n) { on_command_bytes(d, n); });
     lcm_->subscribe(lcm_channel("scene_request"), [this](const std::uint8_t*, std::size_t) {
       scene_requested_.store(true);
       wake_.notify_one();
@@ -293,6 +278,25 @@ void Hub::send(Topic t, const std::vector<std::uint8_t>& bytes) {
   published_[i].fetch_add(1, std::memory_order_relaxed);
 }
 
+// A trajectory command as it arrives on either transport: decoded and handled, or rejected and
+// counted with an event.
+void Hub::on_command_bytes(const std::uint8_t* d, std::size_t n) {
+  hapticloth::trajectory_cmd_t m;
+  if (decode(d, n, m)) {
+    handle_command(m);
+    return;
+  }
+  rejected_.fetch_add(1);
+  post_event("command_rejected", "malformed trajectory_cmd_t (" + std::to_string(n) + " bytes)");
+}
+
+// True if some transport wants topic t now; otherwise the message is counted as skipped.
+bool Hub::admit(Topic t) {
+  if (wanted(t)) return true;
+  skipped_[static_cast<int>(t)].fetch_add(1);
+  return false;
+}
+
 template <class M>
 void Hub::send_msg(Topic t, const M& m) {
   encode(m, buf_);
@@ -300,17 +304,11 @@ void Hub::send_msg(Topic t, const M& m) {
 }
 
 void Hub::publish_scene() {
-  if (wanted(Topic::Scene)) {
-    send(Topic::Scene, scene_bytes_);
-  } else {
-    skipped_[static_cast<int>(Topic::Scene)].fetch_add(1);
-  }
-  if (wanted(Topic::Topology)) {
+  if (admit(Topic::Scene)) send(Topic::Scene, scene_bytes_);
+  if (admit(Topic::Topology)) {
     hapticloth::cloth_topology_t m;
     fill(scene_, m);
     send_msg(Topic::Topology, m);
-  } else {
-    skipped_[static_cast<int>(Topic::Topology)].fetch_add(1);
   }
 }
 
@@ -321,12 +319,8 @@ void Hub::publish_haptics() {
   batch_.clear();
   for (; t != h; ++t) batch_.push_back(ring_[t % kRing]);
   tail_.store(t, std::memory_order_release);
-  const int idx = static_cast<int>(Topic::Haptics);
   for (std::size_t k = 0; k < batch_.size(); k += kMaxSamplesPerMessage) {
-    if (!wanted(Topic::Haptics)) {
-      skipped_[idx].fetch_add(1);
-      continue;
-    }
+    if (!admit(Topic::Haptics)) continue;
     const int n = static_cast<int>(std::min<std::size_t>(kMaxSamplesPerMessage, batch_.size() - k));
     fill(batch_.data() + k, n, fingers_, haptic_msg_);
     send_msg(Topic::Haptics, haptic_msg_);
@@ -345,10 +339,7 @@ void Hub::publish_events() {
   for (const auto& c : cmds)
     if (log_) log_->publish(lcm_channel("trajectory"), c.data(), c.size());
   for (const auto& e : ev) {
-    if (!wanted(Topic::Events)) {
-      skipped_[static_cast<int>(Topic::Events)].fetch_add(1);
-      continue;
-    }
+    if (!admit(Topic::Events)) continue;
     hapticloth::event_t m;
     m.utime = e.utime;
     m.kind = e.kind;
@@ -366,31 +357,23 @@ void Hub::publish_events() {
 void Hub::publish_pending() {
   if (scene_requested_.exchange(false)) publish_scene();
 
-  if (cloth_.acquire()) {
-    if (wanted(Topic::Cloth)) {
-      const ClothFrame& f = cloth_.front();
-      cloth_msg_.utime = wall_utime();
-      cloth_msg_.time = f.time;
-      cloth_msg_.step = static_cast<int64_t>(f.step);
-      cloth_msg_.num_vertices = static_cast<int32_t>(f.x.size());
-      cloth_msg_.positions.resize(f.x.size());
-      for (std::size_t i = 0; i < f.x.size(); ++i) cloth_msg_.positions[i].assign(f.x[i].begin(), f.x[i].end());
-      send_msg(Topic::Cloth, cloth_msg_);
-    } else {
-      skipped_[static_cast<int>(Topic::Cloth)].fetch_add(1);
-    }
+  if (cloth_.acquire() && admit(Topic::Cloth)) {
+    const ClothFrame& f = cloth_.front();
+    cloth_msg_.utime = wall_utime();
+    cloth_msg_.time = f.time;
+    cloth_msg_.step = static_cast<int64_t>(f.step);
+    cloth_msg_.num_vertices = static_cast<int32_t>(f.x.size());
+    cloth_msg_.positions.resize(f.x.size());
+    for (std::size_t i = 0; i < f.x.size(); ++i) cloth_msg_.positions[i].assign(f.x[i].begin(), f.x[i].end());
+    send_msg(Topic::Cloth, cloth_msg_);
   }
 
   publish_haptics();
 
-  if (loop_.acquire()) {
-    if (wanted(Topic::Stats)) {
-      hapticloth::loop_stats_t m;
-      fill(loop_.front(), m);
-      send_msg(Topic::Stats, m);
-    } else {
-      skipped_[static_cast<int>(Topic::Stats)].fetch_add(1);
-    }
+  if (loop_.acquire() && admit(Topic::Stats)) {
+    hapticloth::loop_stats_t m;
+    fill(loop_.front(), m);
+    send_msg(Topic::Stats, m);
   }
 
   // Faults the haptic loop counted: one event per new batch of them.

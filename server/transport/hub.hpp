@@ -118,6 +118,8 @@ class Hub : public haptics::SessionObserver {
   void publish_haptics();
   void publish_events();
   bool wanted(Topic t) const;
+  bool admit(Topic t);
+  void on_command_bytes(const std::uint8_t* d, std::size_t n);
   void send(Topic t, const std::vector<std::uint8_t>& bytes);
   template <class M>
   void send_msg(Topic t, const M& m);
