@@ -49,7 +49,7 @@ Trajectory load_trajectory_csv(const std::string& path, int fingers);
 /// TOML script:
 ///   [start]  finger0 = [x, y, z]  finger1 = [x, y, z]     (m)
 ///   [[step]] primitive = "approach" | "press" | "stroke" | "pinch" | "lift" | "release" |
-///            "hold" | "move", duration = s, and the primitive's parameters (see README).
+///            "hold" | "move", duration = s, and the primitive's parameters (docs/devices.md).
 /// Errors: "PATH:LINE: key 'step[2].depth': message".
 Trajectory load_trajectory_toml(const std::string& path, int fingers);
 

@@ -28,7 +28,7 @@ struct KesOptions {
 struct KesPoint {
   double strain = 0.0;    ///< tensile: clamp displacement / gauge length; shear: eps_uv (eq. 4)
   double angle = 0.0;     ///< shear: clamp shear angle, rad (atan of offset / gap); tensile: 0
-  double stress = 0.0;    ///< N/m: force per unit clamp width (see README for shear)
+  double stress = 0.0;    ///< N/m: force per unit clamp width (docs/kes.md for shear)
   double clamp_force = 0.0;  ///< N/m: raw clamp force per unit width along the loading direction
   double material = 0.0;  ///< N/m: the material law at `strain`
   int newton_iterations = 0;

@@ -51,7 +51,7 @@ int main(int argc, char** argv) {
       ->check(opts::positive(45.0, "degrees"));
   cli.add_option("--tension", opt.lateral_tension, "shear: lateral tension, N/m (default 9.81 = 10 gf/cm)")
       ->check(opts::number_in(0.0, 1e4, false, "N/m"));
-  cli.add_flag("--free-edges", opt.free_edges, "shear: free side edges, as on the tester (see README)");
+  cli.add_flag("--free-edges", opt.free_edges, "shear: free side edges, as on the tester (docs/kes.md)");
   if (const int rc = opts::parse(cli, argc, argv); rc >= 0) return rc;
 
   app::KesTest test;
