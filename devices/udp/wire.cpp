@@ -148,11 +148,18 @@ ParseResult parse_force_packet(const std::uint8_t* data, std::size_t len, int ex
   return ParseResult::Ok;
 }
 
+// The size of a packet of `fingers` fingers if it fits in `cap` bytes of `buf`, else 0.
+static std::size_t room_for(int fingers, const std::uint8_t* buf, std::size_t cap,
+                            std::size_t (*size_of)(int)) noexcept {
+  if (fingers < 1 || fingers > kMaxFingers || buf == nullptr) return 0;
+  const std::size_t size = size_of(fingers);
+  return cap < size ? 0 : size;
+}
+
 std::size_t encode_state_packet(const StatePacket& p, std::uint8_t* buf,
                                 std::size_t cap) noexcept {
-  if (p.fingers < 1 || p.fingers > kMaxFingers || buf == nullptr) return 0;
-  const std::size_t size = state_packet_size(p.fingers);
-  if (cap < size) return 0;
+  const std::size_t size = room_for(p.fingers, buf, cap, state_packet_size);
+  if (size == 0) return 0;
   store_header(buf, kStateMagic, p.fingers, p.sequence, p.device_time);
   for (int i = 0; i < p.fingers; ++i) {
     std::uint8_t* f = buf + kStateHeaderBytes + kStateFingerBytes * i;
@@ -166,9 +173,8 @@ std::size_t encode_state_packet(const StatePacket& p, std::uint8_t* buf,
 
 std::size_t encode_force_packet(const ForcePacket& p, std::uint8_t* buf,
                                 std::size_t cap) noexcept {
-  if (p.fingers < 1 || p.fingers > kMaxFingers || buf == nullptr) return 0;
-  const std::size_t size = force_packet_size(p.fingers);
-  if (cap < size) return 0;
+  const std::size_t size = room_for(p.fingers, buf, cap, force_packet_size);
+  if (size == 0) return 0;
   store_header(buf, kForceMagic, p.fingers, p.sequence, p.server_time);
   store_u32(buf + 24, p.flags);
   store_u32(buf + 28, 0);

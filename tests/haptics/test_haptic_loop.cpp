@@ -7,10 +7,6 @@
 
 using namespace hapticloth;
 using haptics::Vec3;
-using test::drum;
-using test::one_finger;
-using test::sim_config;
-using Rig = test::DrumRig;
 
 // The haptic tick allocates nothing (device read/write, narrow phase, local patch or response
 // model, proxy, gate, handoff), also on the ticks after a global step's hand-over.
@@ -22,9 +18,9 @@ TEST_P(TickAllocation, TickAllocatesNothing) {
   sc.local_patch = GetParam() != haptics::Rendering::Direct;
   sc.local_model = GetParam() == haptics::Rendering::Patch ? haptics::LocalModel::Patch
                                                            : haptics::LocalModel::Response;
-  cloth::IntegratorConfig ic = sim_config(sc.local_patch ? 0.02 : 1e-3);
+  cloth::IntegratorConfig ic = test::sim_config(sc.local_patch ? 0.02 : 1e-3);
   // Pressing from the first tick (the script restarts when the device is reactivated).
-  Rig rig(drum(), one_finger({{0.0, Vec3(0.003, 0.002, r - 0.003)}, {1.0, Vec3(0.013, 0.002, r - 0.003)}}), sc, ic);
+  test::DrumRig rig(test::drum(), test::one_finger({{0.0, Vec3(0.003, 0.002, r - 0.003)}, {1.0, Vec3(0.013, 0.002, r - 0.003)}}), sc, ic);
   auto& s = *rig.session;
   std::uint64_t allocs = 0, contact = 0;
   s.run_stepped(1.0, 0.0, [&](const haptics::HapticLoop&, const haptics::SimWorker&) {});
