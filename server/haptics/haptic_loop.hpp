@@ -102,6 +102,7 @@ class HapticLoop {
   SurfaceContact* contact_;  // direct_, patch_ or response_
   LateTickCatchUp catch_up_;
   CouplingPassivity passivity_;
+  std::array<Vec3, kMaxFingers> damp_{};  // this tick's passivity damping per finger, scene frame
   bool guard_ = true;
   double last_now_ = -1.0;
   std::uint64_t tick_ = 0, device_errors_ = 0, contact_ticks_ = 0, np_skipped_ = 0, late_ticks_ = 0;
