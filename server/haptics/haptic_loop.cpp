@@ -16,15 +16,14 @@ HapticLoop::HapticLoop(const std::vector<std::array<int, 3>>& triangles, int ver
       dev_(device),
       gate_(gate),
       fp_(finger),
+      k_(std::min(finger.stiffness, device.info().max_stiffness)),
       map_(map),
       in_(from_sim),
       out_(to_sim),
       fingers_(device.info().fingers),
       catch_up_(1.0 / device.info().nominal_rate),
-      passivity_(std::min(finger.stiffness, device.info().max_stiffness), 1.0 / device.info().nominal_rate,
-                 gate.max_force()) {
+      passivity_(k_, gate.max_force()) {
   (void)vertices;
-  k_ = std::min(fp_.stiffness, device.info().max_stiffness);
   direct_ = std::make_unique<ProxyContact>(k_);
   contact_ = direct_.get();
 }

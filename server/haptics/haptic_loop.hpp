@@ -1,8 +1,9 @@
 // The 1 kHz haptic tick (sections 3.4 and 4.1): read the device, map each fingertip into the
-// scene, ask the surface contact (ProxyContact: the proxies solved with the cloth; or
-// PatchContact: the local refinement of 4.2) for the force, pass it through the safety gate,
-// write it, and report the fingertips and contacts to the simulation. tick() allocates nothing
-// and takes no lock.
+// scene (a late tick's motion caught up over the ticks it missed: late_tick.hpp), ask the
+// surface contact (ProxyContact: the proxies solved with the cloth; ResponseContact or
+// PatchContact: the multirate path's local models) for the force, keep each coupling passive
+// (passivity.hpp), pass the force through the safety gate, write it, and report the fingertips
+// and contacts to the simulation. tick() allocates nothing and takes no lock.
 #pragma once
 
 #include <memory>
@@ -11,6 +12,7 @@
 #include <Eigen/Core>
 
 #include "hal/handle.hpp"
+#include "hal/rt_handoff.hpp"
 #include "hal/safety_gate.hpp"
 #include "haptics/handoff.hpp"
 #include "haptics/late_tick.hpp"
@@ -18,7 +20,6 @@
 #include "haptics/patch_contact.hpp"
 #include "haptics/surface_contact.hpp"
 #include "haptics/stats.hpp"
-#include "hal/rt_handoff.hpp"
 
 namespace hapticloth::haptics {
 

@@ -6,10 +6,10 @@
 
 namespace hapticloth::haptics {
 
-CouplingPassivity::CouplingPassivity(double stiffness, double nominal_dt, double max_force)
-    : k_(stiffness), dt_(nominal_dt), max_force_(max_force) {
-  if (!(k_ > 0.0) || !(dt_ > 0.0) || !(max_force_ > 0.0) || !std::isfinite(k_ + dt_ + max_force_))
-    throw std::invalid_argument("coupling passivity: stiffness, period and max force must be > 0");
+CouplingPassivity::CouplingPassivity(double stiffness, double max_force)
+    : k_(stiffness), max_force_(max_force) {
+  if (!(k_ > 0.0) || !(max_force_ > 0.0) || !std::isfinite(k_ + max_force_))
+    throw std::invalid_argument("coupling passivity: stiffness and max force must be finite and > 0");
 }
 
 void CouplingPassivity::reset(int f) noexcept { fs_[f] = Finger{}; }

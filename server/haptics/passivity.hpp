@@ -42,9 +42,9 @@ struct PassivityStats {
 
 class CouplingPassivity {
  public:
-  /// `stiffness`: the coupling spring (N/m); `nominal_dt`: the haptic period (s); `max_force`:
+  /// `stiffness`: the coupling spring (N/m); `max_force`:
   /// the most the controller adds (N).
-  CouplingPassivity(double stiffness, double nominal_dt, double max_force);
+  CouplingPassivity(double stiffness, double max_force);
 
   /// One tick of finger f, `dt` (s) after the last: `applied` the force the user got over the interval that ends now
   /// (scene frame), `x` the device's fingertip now, `p` the proxy, `v` the device's velocity,
@@ -80,7 +80,7 @@ class CouplingPassivity {
     double stored = 0.0;
     double reserve = 0.0;
   };
-  double k_, dt_, max_force_;
+  double k_, max_force_;
   std::array<Finger, kMaxFingers> fs_{};
   PassivityStats stats_;
 };

@@ -28,7 +28,7 @@ struct Outcome {
 // intervals; a lossless spring would give back -(U_end - U_0), so the excess over that is what
 // the coupling created.
 Outcome drive(int delay, double damping, bool control, double seconds = 2.0) {
-  haptics::CouplingPassivity pc(kK, kT, kMaxF);
+  haptics::CouplingPassivity pc(kK, kMaxF);
   const double A = 0.01, w = 2.0 * M_PI * 3.0;
   std::deque<Vec3> past;
   Vec3 applied = Vec3::Zero(), x_prev = Vec3::Zero();
@@ -82,7 +82,7 @@ TEST(Passivity, PassiveCouplingIsLeftAlone) {
 // Without motion a damper dissipates nothing: the controller adds no force, and nothing is
 // non-finite.
 TEST(Passivity, NoMotionNoControl) {
-  haptics::CouplingPassivity pc(kK, kT, kMaxF);
+  haptics::CouplingPassivity pc(kK, kMaxF);
   const Vec3 x(0.001, 0.0, 0.0);
   Vec3 f = Vec3::Zero();
   for (int i = 0; i < 10; ++i) {
@@ -93,7 +93,7 @@ TEST(Passivity, NoMotionNoControl) {
 }
 
 TEST(Passivity, RejectsBadParameters) {
-  EXPECT_THROW(haptics::CouplingPassivity(0.0, kT, kMaxF), std::invalid_argument);
-  EXPECT_THROW(haptics::CouplingPassivity(kK, -1.0, kMaxF), std::invalid_argument);
-  EXPECT_THROW(haptics::CouplingPassivity(kK, kT, NAN), std::invalid_argument);
+  EXPECT_THROW(haptics::CouplingPassivity(0.0, kMaxF), std::invalid_argument);
+  EXPECT_THROW(haptics::CouplingPassivity(kK, -1.0), std::invalid_argument);
+  EXPECT_THROW(haptics::CouplingPassivity(kK, NAN), std::invalid_argument);
 }

@@ -176,9 +176,8 @@ def test_haptic_subscribers():
         # 2 s at a 120 Hz cloth rate, plus the haptics, stats and events topics
         assert got["zenoh"] > 200 and got["lcm"] > 200, p["on"]["received"]
         for run in (p["off"], p["on"]):
-            assert run["ticks"] >= 1900 and run["period_error_p99_us"] >= 0.0
+            assert run["ticks"] >= 1900
         assert p["platform_timer"]["ticks"] == 2000
-    assert j["difference_p99_us"] == pytest.approx(j["on_period_error_p99_us"] - j["off_period_error_p99_us"])
 
 
 def test_haptic_subscribers_bad_input():
