@@ -81,9 +81,14 @@ class Client:
             self._lc.handle_timeout(100)
 
     def publish(self, topic, data):
-        """Sends encoded bytes on a topic (an input of the server, or anything in tests)."""
+        """Sends encoded bytes on a topic (an input of the server, or anything in tests).
+        Over zenoh the put waits for room in the session's send queue: zenoh's default for a put
+        is to drop the message when the queue is full, and two 100 KB trajectories sent back to
+        back (a replay of both fingers) could lose the second one without a trace. A client's
+        inputs are few and must arrive; the server's real-time outputs are the ones dropped."""
         if self.transport == "zenoh":
-            self._z.put(self.key(topic), data)
+            import zenoh
+            self._z.put(self.key(topic), data, congestion_control=zenoh.CongestionControl.BLOCK)
         else:
             self._lc.publish(channel(topic), data)
 
