@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
+#include <initializer_list>
 #include <sstream>
 #include <stdexcept>
 
@@ -186,25 +188,22 @@ struct Builder {
   }
 };
 
-}  // namespace
-
-Trajectory load_trajectory_toml(const std::string& path, int fingers) {
+// A parsed trajectory script and its typed reads; every error is a std::invalid_argument
+// "PATH:LINE: key 'step[2].depth': message". (server/app's TomlFile reads scenes the same way,
+// but devices/ does not depend on server/.)
+struct Script {
+  std::string path;
   toml::table root;
-  try {
-    root = toml::parse_file(path);
-  } catch (const toml::parse_error& e) {
-    std::ostringstream os;
-    os << path << ":" << e.source().begin.line << ": " << e.description();
-    throw std::invalid_argument(os.str());
-  }
-  auto fail = [&](const toml::node* n, const std::string& key, const std::string& msg) {
+
+  [[noreturn]] void fail(const toml::node* n, const std::string& key, const std::string& msg) const {
     std::ostringstream os;
     os << path;
     if (n && n->source().begin.line) os << ":" << n->source().begin.line;
     os << ": key '" << key << "': " << msg;
     throw std::invalid_argument(os.str());
-  };
-  auto vec3 = [&](const toml::node* n, const std::string& key) {
+  }
+
+  Vec3 vec3(const toml::node* n, const std::string& key) const {
     const toml::array* a = n ? n->as_array() : nullptr;
     if (!a || a->size() != 3) fail(n, key, "expected [x, y, z] in metres");
     Vec3 v;
@@ -214,87 +213,124 @@ Trajectory load_trajectory_toml(const std::string& path, int fingers) {
       v[i] = *x;
     }
     return v;
-  };
-  auto number = [&](const toml::table& t, const std::string& prefix, const char* key, double dflt,
-                    bool positive) {
+  }
+
+  // t[key] (named prefix.key in messages), or `dflt` when absent.
+  double number(const toml::table& t, const std::string& prefix, const char* key, double dflt,
+                bool positive) const {
     const toml::node* n = t.get(key);
     if (!n) return dflt;
     const auto x = n->value<double>();
     if (!x || !std::isfinite(*x)) fail(n, prefix + "." + key, "expected a finite number");
     if (positive && !(*x > 0.0)) fail(n, prefix + "." + key, "must be > 0");
     return *x;
-  };
-  for (const auto& [k, v] : root)
-    if (k != "start" && k != "step")
-      fail(&v, std::string(k.str()), "unknown key (start, step)");
-  const toml::table* start = root["start"].as_table();
-  if (!start) fail(nullptr, "start", "missing table [start] with finger0 = [x, y, z], ...");
+  }
+};
+
+Script parse_script(const std::string& path) {
+  Script s{path, {}};
+  try {
+    s.root = toml::parse_file(path);
+  } catch (const toml::parse_error& e) {
+    std::ostringstream os;
+    os << path << ":" << e.source().begin.line << ": " << e.description();
+    throw std::invalid_argument(os.str());
+  }
+  for (const auto& [k, v] : s.root)
+    if (k != "start" && k != "step") s.fail(&v, std::string(k.str()), "unknown key (start, step)");
+  return s;
+}
+
+// [start]: finger0 = [x, y, z], finger1 = ...
+std::vector<Vec3> start_positions(const Script& s, int fingers) {
+  const toml::table* start = s.root["start"].as_table();
+  if (!start) s.fail(nullptr, "start", "missing table [start] with finger0 = [x, y, z], ...");
   std::vector<Vec3> p0;
   for (int f = 0; f < fingers; ++f) {
     const std::string key = "finger" + std::to_string(f);
     const toml::node* n = start->get(key);
-    if (!n) fail(start, "start." + key, "missing");
-    p0.push_back(vec3(n, "start." + key));
+    if (!n) s.fail(start, "start." + key, "missing");
+    p0.push_back(s.vec3(n, "start." + key));
   }
-  Builder b(p0);
-  const toml::array* steps = root["step"].as_array();
-  if (!steps || steps->empty()) fail(nullptr, "step", "missing: at least one [[step]]");
-  for (size_t i = 0; i < steps->size(); ++i) {
-    const std::string pre = "step[" + std::to_string(i) + "]";
-    const toml::table* st = (*steps)[i].as_table();
-    if (!st) fail(&(*steps)[i], pre, "expected a table");
-    const auto prim = (*st)["primitive"].value<std::string>();
-    if (!prim) fail(st, pre + ".primitive", "missing (approach, press, stroke, pinch, lift, release, hold, move)");
-    const double dur = number(*st, pre, "duration", 0.5, true);
-    const std::string& p = *prim;
-    auto allowed = [&](std::initializer_list<const char*> keys) {
-      for (const auto& [k, v] : *st) {
-        bool ok = k == "primitive" || k == "duration";
-        for (const char* a : keys) ok = ok || k == a;
-        if (!ok) fail(&v, pre + "." + std::string(k.str()), "not a parameter of '" + p + "'");
-      }
-    };
-    if (p == "approach") {  // down by distance (default 2 cm)
-      allowed({"distance"});
-      b.shift(Vec3(0, 0, -number(*st, pre, "distance", 0.02, true)), dur);
-    } else if (p == "press") {  // down by depth (default 5 mm)
-      allowed({"depth"});
-      b.shift(Vec3(0, 0, -number(*st, pre, "depth", 0.005, true)), dur);
-    } else if (p == "lift") {  // up by height (default 1 cm)
-      allowed({"height"});
-      b.shift(Vec3(0, 0, number(*st, pre, "height", 0.01, true)), dur);
-    } else if (p == "stroke") {  // along direction by distance (default 3 cm along x)
-      allowed({"distance", "direction"});
-      Vec3 d(1, 0, 0);
-      if (const toml::node* n = st->get("direction")) d = vec3(n, pre + ".direction");
-      if (!(d.norm() > 0.0)) fail(st->get("direction"), pre + ".direction", "must not be zero");
-      b.shift(number(*st, pre, "distance", 0.03, true) * d.normalized(), dur);
-    } else if (p == "pinch") {  // fingers 0, 1 close to gap between centres (default 16 mm)
-      allowed({"gap"});
-      b.set_gap(number(*st, pre, "gap", 0.016, true), dur);
-    } else if (p == "release") {  // fingers 0, 1 open to gap (default 4 cm)
-      allowed({"gap"});
-      b.set_gap(number(*st, pre, "gap", 0.04, true), dur);
-    } else if (p == "hold") {
-      allowed({});
-      b.shift(Vec3::Zero(), dur);
-    } else if (p == "move") {  // absolute: fingerN = [x, y, z]
-      std::vector<Vec3> n = b.at;
-      for (const auto& [k, v] : *st) {
-        if (k == "primitive" || k == "duration") continue;
-        const std::string ks(k.str());
-        int f = -1;
-        if (ks.rfind("finger", 0) == 0) f = std::atoi(ks.c_str() + 6);
-        if (f < 0 || f >= fingers || ks != "finger" + std::to_string(f))
-          fail(&v, pre + "." + ks, "not a parameter of 'move' (finger0, finger1, ...)");
-        n[f] = vec3(&v, pre + "." + ks);
-      }
-      b.to(n, dur);
-    } else {
-      fail(st->get("primitive"), pre + ".primitive",
+  return p0;
+}
+
+// Rejects a key of the step that is not a parameter of its primitive `p`.
+void only_parameters(const Script& s, const toml::table& st, const std::string& pre,
+                     const std::string& p, std::initializer_list<const char*> keys) {
+  for (const auto& [k, v] : st) {
+    bool ok = k == "primitive" || k == "duration";
+    for (const char* a : keys) ok = ok || k == a;
+    if (!ok) s.fail(&v, pre + "." + std::string(k.str()), "not a parameter of '" + p + "'");
+  }
+}
+
+// "move": absolute positions, fingerN = [x, y, z]; the fingers not named stay.
+std::vector<Vec3> move_targets(const Script& s, const toml::table& st, const std::string& pre,
+                               const std::vector<Vec3>& at) {
+  std::vector<Vec3> n = at;
+  const int fingers = static_cast<int>(at.size());
+  for (const auto& [k, v] : st) {
+    if (k == "primitive" || k == "duration") continue;
+    const std::string ks(k.str());
+    int f = -1;
+    if (ks.rfind("finger", 0) == 0) f = std::atoi(ks.c_str() + 6);
+    if (f < 0 || f >= fingers || ks != "finger" + std::to_string(f))
+      s.fail(&v, pre + "." + ks, "not a parameter of 'move' (finger0, finger1, ...)");
+    n[f] = s.vec3(&v, pre + "." + ks);
+  }
+  return n;
+}
+
+// One [[step]]: its primitive, with its parameters, appended to the builder.
+void add_step(const Script& s, const toml::node& node, const std::string& pre, Builder& b) {
+  const toml::table* st = node.as_table();
+  if (!st) s.fail(&node, pre, "expected a table");
+  const auto prim = (*st)["primitive"].value<std::string>();
+  if (!prim) s.fail(st, pre + ".primitive", "missing (approach, press, stroke, pinch, lift, release, hold, move)");
+  const double dur = s.number(*st, pre, "duration", 0.5, true);
+  const std::string& p = *prim;
+  auto allowed = [&](std::initializer_list<const char*> keys) { only_parameters(s, *st, pre, p, keys); };
+  if (p == "approach") {  // down by distance (default 2 cm)
+    allowed({"distance"});
+    b.shift(Vec3(0, 0, -s.number(*st, pre, "distance", 0.02, true)), dur);
+  } else if (p == "press") {  // down by depth (default 5 mm)
+    allowed({"depth"});
+    b.shift(Vec3(0, 0, -s.number(*st, pre, "depth", 0.005, true)), dur);
+  } else if (p == "lift") {  // up by height (default 1 cm)
+    allowed({"height"});
+    b.shift(Vec3(0, 0, s.number(*st, pre, "height", 0.01, true)), dur);
+  } else if (p == "stroke") {  // along direction by distance (default 3 cm along x)
+    allowed({"distance", "direction"});
+    Vec3 d(1, 0, 0);
+    if (const toml::node* n = st->get("direction")) d = s.vec3(n, pre + ".direction");
+    if (!(d.norm() > 0.0)) s.fail(st->get("direction"), pre + ".direction", "must not be zero");
+    b.shift(s.number(*st, pre, "distance", 0.03, true) * d.normalized(), dur);
+  } else if (p == "pinch") {  // fingers 0, 1 close to gap between centres (default 16 mm)
+    allowed({"gap"});
+    b.set_gap(s.number(*st, pre, "gap", 0.016, true), dur);
+  } else if (p == "release") {  // fingers 0, 1 open to gap (default 4 cm)
+    allowed({"gap"});
+    b.set_gap(s.number(*st, pre, "gap", 0.04, true), dur);
+  } else if (p == "hold") {
+    allowed({});
+    b.shift(Vec3::Zero(), dur);
+  } else if (p == "move") {
+    b.to(move_targets(s, *st, pre, b.at), dur);
+  } else {
+    s.fail(st->get("primitive"), pre + ".primitive",
            "unknown primitive '" + p + "' (approach, press, stroke, pinch, lift, release, hold, move)");
-    }
   }
+}
+
+}  // namespace
+
+Trajectory load_trajectory_toml(const std::string& path, int fingers) {
+  const Script s = parse_script(path);
+  Builder b(start_positions(s, fingers));
+  const toml::array* steps = s.root["step"].as_array();
+  if (!steps || steps->empty()) s.fail(nullptr, "step", "missing: at least one [[step]]");
+  for (size_t i = 0; i < steps->size(); ++i) add_step(s, (*steps)[i], "step[" + std::to_string(i) + "]", b);
   return b.tr;
 }
 

@@ -163,10 +163,9 @@ KesResult run_tensile(const cloth::Material& mat, KesTest test, const KesOptions
   return r;
 }
 
-KesResult run_shear(const cloth::Material& mat, const KesOptions& opt) {
-  // KES-F shear: clamps along the weft (u = x) 20 cm long, 5 cm apart across the warp (v = y);
-  // the specimen is held at a lateral tension across the clamps, then one clamp slides along
-  // its length.
+// KES-F shear specimen: clamps along the weft (u = x) 20 cm long, 5 cm apart across the warp
+// (v = y).
+Specimen shear_specimen(const KesOptions& opt) {
   cloth::GridSpec g;
   g.width = kGauge;
   g.height = kWidth;
@@ -186,87 +185,134 @@ KesResult run_shear(const cloth::Material& mat, const KesOptions& opt) {
     sp.weight.push_back(w);
   }
   sp.measured_length = 0.5 * kGauge;
-  std::vector<int> pins = sp.fixed;
-  pins.insert(pins.end(), sp.moving.begin(), sp.moving.end());
-  // Guarded sides: the side edges follow the affine shear, as the middle of an infinitely wide
-  // specimen would. With free sides the disturbance of this orthotropic membrane (no Poisson
-  // coupling, stiff fibres, soft shear) reaches far into a 20 cm x 5 cm specimen and the clamp
-  // force deviates from the law (up to 0.6% for a soft-shear fabric; --free-edges shows it).
+  return sp;
+}
+
+// Guarded sides: the side edges follow the affine shear, as the middle of an infinitely wide
+// specimen would. With free sides the disturbance of this orthotropic membrane (no Poisson
+// coupling, stiff fibres, soft shear) reaches far into a 20 cm x 5 cm specimen and the clamp
+// force deviates from the law (up to 0.6% for a soft-shear fabric; --free-edges shows it).
+std::vector<int> guarded_sides(const Specimen& sp, bool free_edges) {
   std::vector<int> sides;
-  if (!opt.free_edges)
+  if (!free_edges)
     for (const char* e : {"left", "right"})
       for (int v : cloth::grid_edge(sp.mesh, e)) sides.push_back(v);
+  return sides;
+}
+
+// The affine map of the clamp motion (shear sh, gap strain e) at a rest point.
+Vec3 affine(const Vec3& p, double sh, double e) {
+  return Vec3(p.x() + sh * p.y(), p.y() * (1.0 + e), p.z());
+}
+
+// What every step of the shear test works on.
+struct ShearRun {
+  const cloth::Material& mat;
+  const KesOptions& opt;
+  const cloth::ClothModel& model;
+  cloth::StaticSolver& solver;
+  const Specimen& sp;
+  const std::vector<int>& sides;  // moved with the clamp (guarded sides)
+  KesResult& r;
+  std::vector<Vec3> f;            // scratch: net forces
+};
+
+// The specimen at rest under the lateral tension (clamp gap strain e0), before shearing.
+cloth::ClothState pretension(ShearRun& run, double e0) {
+  cloth::ClothState s0 = cloth::rest_state(run.model);
+  for (int i = 0; i < run.model.num_vertices(); ++i) s0.x[i] = affine(run.model.rest_positions[i], 0.0, e0);
+  equilibrate(run.solver, s0, run.r, "lateral tension");
+  return s0;
+}
+
+// The equilibrium at shear sh under constant lateral tension (the tester's weight): the clamp
+// gap strain `gap` follows so that the clamp's force across it stays T. Secant steps on the gap,
+// from the last one. R is the clamp reaction per unit length.
+cloth::StaticResult hold_tension(ShearRun& run, double sh, double gam, double& gap,
+                                 cloth::ClothState& guess, Vec3& R) {
+  cloth::StaticResult res;
+  double e_lo = gap, f_lo = 0.0;
+  bool have_lo = false;
+  for (int tries = 0;; ++tries) {
+    for (int v : run.sp.moving) guess.x[v] = affine(run.model.rest_positions[v], sh, gap);
+    for (int v : run.sides) guess.x[v] = affine(run.model.rest_positions[v], sh, gap);
+    res = equilibrate(run.solver, guess, run.r, "shear angle " + std::to_string(gam) + " rad");
+    R = reaction(run.solver, guess, run.sp, run.f);
+    const double err = R.y() - run.opt.lateral_tension;
+    if (std::abs(err) <= 1e-9 * run.opt.lateral_tension || tries == 20) break;
+    double slope = run.mat.warp.stiffness(gap);  // first guess: the warp law's tangent
+    if (have_lo && gap != e_lo) slope = (R.y() - f_lo) / (gap - e_lo);
+    if (!(slope > 0.0)) slope = std::max(run.mat.warp.B[0][1], 1e-6);
+    e_lo = gap;
+    f_lo = R.y();
+    have_lo = true;
+    gap -= err / slope;
+  }
+  return res;
+}
+
+// The point of one equilibrium at clamp angle gam (shear sh = tan gam, gap strain e0).
+KesPoint shear_point(const cloth::Material& mat, double gam, double sh, double e0, const Vec3& R,
+                     const cloth::StaticResult& res) {
+  // Work-conjugate stresses of the homogeneous state with U = (1, 0), V = (sh, 1 + e0):
+  //   [f_u, f_v] = [[d|V|/d sh, d eps_uv/d sh], [d|V|/d e, d eps_uv/d e]] [sigma_vv, sigma_uv]
+  // (eq. 4: eps_uv = (|U + V| - |U - V|) / sqrt 2); solved for sigma_uv, so that the lateral
+  // tension's share of the clamp force (T tan(angle) on the tester) is taken out.
+  const double ee = 1.0 + e0;
+  const double Vn = std::hypot(sh, ee), Sn = std::hypot(1.0 + sh, ee), Dn = std::hypot(1.0 - sh, ee);
+  const double a11 = sh / Vn, a12 = ((1.0 + sh) / Sn + (1.0 - sh) / Dn) * kInvSqrt2;
+  const double a21 = ee / Vn, a22 = (ee / Sn - ee / Dn) * kInvSqrt2;
+  const double det = a11 * a22 - a12 * a21;
+  const double sigma_uv = (a11 * R.y() - a21 * R.x()) / det;
+  KesPoint p;
+  p.angle = gam;
+  p.strain = (Sn - Dn) * kInvSqrt2;
+  p.stress = sigma_uv;
+  p.clamp_force = R.x();
+  p.material = mat.shear.stress(p.strain);
+  p.newton_iterations = res.iterations;
+  p.residual = res.residual;
+  return p;
+}
+
+// One branch of the sweep from the pre-tensioned state s0: sign +1 from 0 to +max degrees,
+// -1 from one step below 0 to -max.
+void sweep_shear(ShearRun& run, const cloth::ClothState& s0, double e0, int sign) {
+  const double gmax = run.opt.max_shear_deg * M_PI / 180.0;
+  cloth::ClothState s = s0, prev = s0;
+  double gap = e0;  // clamp gap strain, adjusted to hold the tension
+  for (int k = (sign > 0 ? 0 : 1); k <= run.opt.load_steps; ++k) {
+    const double gam = sign * gmax * k / run.opt.load_steps;
+    const double sh = std::tan(gam);
+    cloth::ClothState guess = s;
+    if (k >= 2) predict(run.model, prev, guess);
+    Vec3 R;
+    const cloth::StaticResult res = hold_tension(run, sh, gam, gap, guess, R);
+    prev = s;
+    s = guess;
+    run.r.points.push_back(shear_point(run.mat, gam, sh, gap, R, res));
+  }
+}
+
+// KES-F shear: the specimen is held at a lateral tension across the clamps, then one clamp
+// slides along its length, both ways.
+KesResult run_shear(const cloth::Material& mat, const KesOptions& opt) {
+  const Specimen sp = shear_specimen(opt);
+  const std::vector<int> sides = guarded_sides(sp, opt.free_edges);
+  std::vector<int> pins = sp.fixed;
+  pins.insert(pins.end(), sp.moving.begin(), sp.moving.end());
   pins.insert(pins.end(), sides.begin(), sides.end());
   const cloth::ClothModel model = cloth::build_model(sp.mesh, mat, pins);
   cloth::StaticSolver solver(model, Vec3::Zero());
-  // The affine map of the clamp motion (shear sh, gap strain e) at a rest point.
-  auto affine = [&](const Vec3& p, double sh, double e) {
-    return Vec3(p.x() + sh * p.y(), p.y() * (1.0 + e), p.z());
-  };
 
   KesResult r;
   r.test = KesTest::Shear;
   r.triangles = model.num_triangles();
+  ShearRun run{mat, opt, model, solver, sp, sides, r, {}};
   // Lateral tension: the clamp gap that gives sigma_vv = T before shearing.
   const double e0 = bisect_strain(mat.warp, opt.lateral_tension, std::max(mat.warp.max_strain, 0.5));
-  cloth::ClothState s0 = cloth::rest_state(model);
-  for (int i = 0; i < model.num_vertices(); ++i) s0.x[i] = affine(model.rest_positions[i], 0.0, e0);
-  equilibrate(solver, s0, r, "lateral tension");
-  std::vector<Vec3> f;
-  const double gmax = opt.max_shear_deg * M_PI / 180.0;
-  for (int sign : {+1, -1}) {
-    cloth::ClothState s = s0, prev = s0;
-    double gap = e0;  // clamp gap strain, adjusted to hold the tension
-    for (int k = (sign > 0 ? 0 : 1); k <= opt.load_steps; ++k) {
-      const double gam = sign * gmax * k / opt.load_steps;
-      const double sh = std::tan(gam);
-      cloth::ClothState guess = s;
-      if (k >= 2) predict(model, prev, guess);
-      // Constant lateral tension (the tester's weight): the clamp gap follows so that the
-      // clamp's force across it stays T. Secant steps on the gap, from the last one.
-      cloth::StaticResult res;
-      Vec3 R;
-      double e_lo = gap, f_lo = 0.0;
-      bool have_lo = false;
-      for (int tries = 0;; ++tries) {
-        for (int v : sp.moving) guess.x[v] = affine(model.rest_positions[v], sh, gap);
-        for (int v : sides) guess.x[v] = affine(model.rest_positions[v], sh, gap);
-        res = equilibrate(solver, guess, r, "shear angle " + std::to_string(gam) + " rad");
-        R = reaction(solver, guess, sp, f);
-        const double err = R.y() - opt.lateral_tension;
-        if (std::abs(err) <= 1e-9 * opt.lateral_tension || tries == 20) break;
-        double slope = mat.warp.stiffness(gap);  // first guess: the warp law's tangent
-        if (have_lo && gap != e_lo) slope = (R.y() - f_lo) / (gap - e_lo);
-        if (!(slope > 0.0)) slope = std::max(mat.warp.B[0][1], 1e-6);
-        e_lo = gap;
-        f_lo = R.y();
-        have_lo = true;
-        gap -= err / slope;
-      }
-      prev = s;
-      s = guess;
-      const double e0 = gap;
-      // Work-conjugate stresses of the homogeneous state with U = (1, 0), V = (sh, 1 + e0):
-      //   [f_u, f_v] = [[d|V|/d sh, d eps_uv/d sh], [d|V|/d e, d eps_uv/d e]] [sigma_vv, sigma_uv]
-      // (eq. 4: eps_uv = (|U + V| - |U - V|) / sqrt 2); solved for sigma_uv, so that the lateral
-      // tension's share of the clamp force (T tan(angle) on the tester) is taken out.
-      const double ee = 1.0 + e0;
-      const double Vn = std::hypot(sh, ee), Sn = std::hypot(1.0 + sh, ee), Dn = std::hypot(1.0 - sh, ee);
-      const double a11 = sh / Vn, a12 = ((1.0 + sh) / Sn + (1.0 - sh) / Dn) * kInvSqrt2;
-      const double a21 = ee / Vn, a22 = (ee / Sn - ee / Dn) * kInvSqrt2;
-      const double det = a11 * a22 - a12 * a21;
-      const double sigma_uv = (a11 * R.y() - a21 * R.x()) / det;
-      KesPoint p;
-      p.angle = gam;
-      p.strain = (Sn - Dn) * kInvSqrt2;
-      p.stress = sigma_uv;
-      p.clamp_force = R.x();
-      p.material = mat.shear.stress(p.strain);
-      p.newton_iterations = res.iterations;
-      p.residual = res.residual;
-      r.points.push_back(p);
-    }
-  }
+  const cloth::ClothState s0 = pretension(run, e0);
+  for (int sign : {+1, -1}) sweep_shear(run, s0, e0, sign);
   finish(r);
   return r;
 }

@@ -216,6 +216,104 @@ void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   }
 }
 
+// material = "file.toml": its errors are reported at the scene's key, naming the material file.
+void load_scene_material(const TomlFile& f, const std::string& path, Scene& s) {
+  s.material_path = resolve(path, f.string(f.root(), "", "material"));
+  try {
+    s.material = load_material(s.material_path);
+  } catch (const ConfigError& e) {
+    f.fail(f.root().get("material"), "material", e.what());
+  }
+}
+
+void load_mesh(const TomlFile& f, Scene& s) {
+  const toml::table* mt = f.table(f.root(), "", "mesh", true);
+  const std::string type = f.string(*mt, "mesh", "type");
+  if (type == "grid") s.mesh = grid_mesh(f, *mt);
+  else if (type == "obj") s.mesh = obj_mesh(f, *mt);
+  else f.fail(mt->get("type"), "mesh.type", "must be \"grid\" or \"obj\"");
+}
+
+// [pins]: the union of named grid edges, vertex indices and the vertices inside a box.
+void load_pins(const TomlFile& f, const toml::table& pt, Scene& s) {
+  f.only_keys(pt, "pins", {"edges", "vertices", "box_min", "box_max"});
+  std::set<int> pins;
+  for (const auto& e : f.strings(pt, "pins", "edges")) {
+    try {
+      for (int v : cloth::grid_edge(s.mesh, e)) pins.insert(v);
+    } catch (const std::invalid_argument& err) {
+      f.fail(pt.get("edges"), "pins.edges", err.what());
+    }
+  }
+  if (pt.get("vertices")) {
+    const int nv = static_cast<int>(s.mesh.positions.size());
+    for (double v : f.numbers(pt, "pins", "vertices", 0, 1u << 30)) {
+      if (v != std::floor(v) || v < 0 || v >= nv) {
+        std::ostringstream os;
+        os << "vertex " << v << " is not an index in [0, " << nv << ")";
+        f.fail(pt.get("vertices"), "pins.vertices", os.str());
+      }
+      pins.insert(static_cast<int>(v));
+    }
+  }
+  if (pt.get("box_min") || pt.get("box_max")) {
+    const auto lo = f.numbers(pt, "pins", "box_min", 3, 3);
+    const auto hi = f.numbers(pt, "pins", "box_max", 3, 3);
+    for (size_t i = 0; i < s.mesh.positions.size(); ++i) {
+      const auto& p = s.mesh.positions[i];
+      if (p.x() >= lo[0] && p.x() <= hi[0] && p.y() >= lo[1] && p.y() <= hi[1] &&
+          p.z() >= lo[2] && p.z() <= hi[2])
+        pins.insert(static_cast<int>(i));
+    }
+  }
+  s.pins.assign(pins.begin(), pins.end());
+}
+
+void load_physics(const TomlFile& f, const toml::table& ph, Scene& s) {
+  f.only_keys(ph, "physics", {"gravity", "air_damping"});
+  if (ph.get("gravity")) {
+    const auto g = f.numbers(ph, "physics", "gravity", 3, 3);
+    s.integrator.gravity = {g[0], g[1], g[2]};
+  }
+  s.integrator.air_damping = f.number(ph, "physics", "air_damping", 0.0);
+  if (s.integrator.air_damping < 0.0)
+    f.fail(ph.get("air_damping"), "physics.air_damping", "must be >= 0 (N s/m^3)");
+}
+
+void load_integrator(const TomlFile& f, const toml::table& it, Scene& s) {
+  f.only_keys(it, "integrator", {"dt", "alpha", "solver", "jacobian", "pcg_tolerance",
+                                 "pcg_max_iterations", "pcg_float_matrix", "max_halvings",
+                                 "explosion_ratio"});
+  auto& c = s.integrator;
+  c.dt = f.number(it, "integrator", "dt", c.dt);
+  if (!(c.dt > 0.0)) f.fail(it.get("dt"), "integrator.dt", "must be > 0 (s)");
+  c.alpha = f.number(it, "integrator", "alpha", c.alpha);
+  if (!(c.alpha >= 0.5 && c.alpha <= 1.0))
+    f.fail(it.get("alpha"), "integrator.alpha", "must be in [0.5, 1] (eq. 8)");
+  s.solver = f.string(it, "integrator", "solver", s.solver);
+  if (s.solver != "pcg" && s.solver != "cholmod" && s.solver != "cholmod-supernodal")
+    f.fail(it.get("solver"), "integrator.solver", "must be \"pcg\", \"cholmod\" or \"cholmod-supernodal\"");
+  const std::string jac = f.string(it, "integrator", "jacobian", std::string("spd"));
+  if (jac == "spd") c.jacobian = cloth::JacobianMode::Spd;
+  else if (jac == "exact") c.jacobian = cloth::JacobianMode::Exact;
+  else f.fail(it.get("jacobian"), "integrator.jacobian", "must be \"spd\" or \"exact\"");
+  s.pcg.tolerance = f.number(it, "integrator", "pcg_tolerance", s.pcg.tolerance);
+  if (!(s.pcg.tolerance > 0.0 && s.pcg.tolerance < 1.0))
+    f.fail(it.get("pcg_tolerance"), "integrator.pcg_tolerance", "must be in (0, 1)");
+  s.pcg.max_iterations =
+      static_cast<int>(f.integer(it, "integrator", "pcg_max_iterations", s.pcg.max_iterations));
+  s.pcg.single_precision_matrix =
+      f.boolean(it, "integrator", "pcg_float_matrix", s.pcg.single_precision_matrix);
+  if (s.pcg.max_iterations < 1)
+    f.fail(it.get("pcg_max_iterations"), "integrator.pcg_max_iterations", "must be >= 1");
+  c.max_halvings = static_cast<int>(f.integer(it, "integrator", "max_halvings", c.max_halvings));
+  if (c.max_halvings < 0 || c.max_halvings > 20)
+    f.fail(it.get("max_halvings"), "integrator.max_halvings", "must be in [0, 20]");
+  c.explosion_ratio = f.number(it, "integrator", "explosion_ratio", c.explosion_ratio);
+  if (!(c.explosion_ratio > 0.0))
+    f.fail(it.get("explosion_ratio"), "integrator.explosion_ratio", "must be > 0");
+}
+
 }  // namespace
 
 Scene load_scene(const std::string& path) {
@@ -228,100 +326,13 @@ Scene load_scene(const std::string& path) {
   s.name = f.string(r, "", "name", fs::path(path).stem().string());
   s.duration = f.number(r, "", "duration", 10.0);
   if (!(s.duration > 0.0)) f.fail(r.get("duration"), "duration", "must be > 0 (s)");
-
-  s.material_path = resolve(path, f.string(r, "", "material"));
-  try {
-    s.material = load_material(s.material_path);
-  } catch (const ConfigError& e) {
-    f.fail(r.get("material"), "material", e.what());
-  }
-
-  const toml::table* mt = f.table(r, "", "mesh", true);
-  const std::string type = f.string(*mt, "mesh", "type");
-  if (type == "grid") s.mesh = grid_mesh(f, *mt);
-  else if (type == "obj") s.mesh = obj_mesh(f, *mt);
-  else f.fail(mt->get("type"), "mesh.type", "must be \"grid\" or \"obj\"");
-
-  if (const toml::table* pt = f.table(r, "", "pins", false)) {
-    f.only_keys(*pt, "pins", {"edges", "vertices", "box_min", "box_max"});
-    std::set<int> pins;
-    for (const auto& e : f.strings(*pt, "pins", "edges")) {
-      try {
-        for (int v : cloth::grid_edge(s.mesh, e)) pins.insert(v);
-      } catch (const std::invalid_argument& err) {
-        f.fail(pt->get("edges"), "pins.edges", err.what());
-      }
-    }
-    if (pt->get("vertices")) {
-      const int nv = static_cast<int>(s.mesh.positions.size());
-      for (double v : f.numbers(*pt, "pins", "vertices", 0, 1u << 30)) {
-        if (v != std::floor(v) || v < 0 || v >= nv) {
-          std::ostringstream os;
-          os << "vertex " << v << " is not an index in [0, " << nv << ")";
-          f.fail(pt->get("vertices"), "pins.vertices", os.str());
-        }
-        pins.insert(static_cast<int>(v));
-      }
-    }
-    if (pt->get("box_min") || pt->get("box_max")) {
-      const auto lo = f.numbers(*pt, "pins", "box_min", 3, 3);
-      const auto hi = f.numbers(*pt, "pins", "box_max", 3, 3);
-      for (size_t i = 0; i < s.mesh.positions.size(); ++i) {
-        const auto& p = s.mesh.positions[i];
-        if (p.x() >= lo[0] && p.x() <= hi[0] && p.y() >= lo[1] && p.y() <= hi[1] &&
-            p.z() >= lo[2] && p.z() <= hi[2])
-          pins.insert(static_cast<int>(i));
-      }
-    }
-    s.pins.assign(pins.begin(), pins.end());
-  }
-
-  if (const toml::table* ph = f.table(r, "", "physics", false)) {
-    f.only_keys(*ph, "physics", {"gravity", "air_damping"});
-    if (ph->get("gravity")) {
-      const auto g = f.numbers(*ph, "physics", "gravity", 3, 3);
-      s.integrator.gravity = {g[0], g[1], g[2]};
-    }
-    s.integrator.air_damping = f.number(*ph, "physics", "air_damping", 0.0);
-    if (s.integrator.air_damping < 0.0)
-      f.fail(ph->get("air_damping"), "physics.air_damping", "must be >= 0 (N s/m^3)");
-  }
-
-  if (const toml::table* it = f.table(r, "", "integrator", false)) {
-    f.only_keys(*it, "integrator", {"dt", "alpha", "solver", "jacobian", "pcg_tolerance",
-                                    "pcg_max_iterations", "pcg_float_matrix", "max_halvings",
-                                    "explosion_ratio"});
-    auto& c = s.integrator;
-    c.dt = f.number(*it, "integrator", "dt", c.dt);
-    if (!(c.dt > 0.0)) f.fail(it->get("dt"), "integrator.dt", "must be > 0 (s)");
-    c.alpha = f.number(*it, "integrator", "alpha", c.alpha);
-    if (!(c.alpha >= 0.5 && c.alpha <= 1.0))
-      f.fail(it->get("alpha"), "integrator.alpha", "must be in [0.5, 1] (eq. 8)");
-    s.solver = f.string(*it, "integrator", "solver", s.solver);
-    if (s.solver != "pcg" && s.solver != "cholmod" && s.solver != "cholmod-supernodal")
-      f.fail(it->get("solver"), "integrator.solver", "must be \"pcg\", \"cholmod\" or \"cholmod-supernodal\"");
-    const std::string jac = f.string(*it, "integrator", "jacobian", std::string("spd"));
-    if (jac == "spd") c.jacobian = cloth::JacobianMode::Spd;
-    else if (jac == "exact") c.jacobian = cloth::JacobianMode::Exact;
-    else f.fail(it->get("jacobian"), "integrator.jacobian", "must be \"spd\" or \"exact\"");
-    s.pcg.tolerance = f.number(*it, "integrator", "pcg_tolerance", s.pcg.tolerance);
-    if (!(s.pcg.tolerance > 0.0 && s.pcg.tolerance < 1.0))
-      f.fail(it->get("pcg_tolerance"), "integrator.pcg_tolerance", "must be in (0, 1)");
-    s.pcg.max_iterations =
-        static_cast<int>(f.integer(*it, "integrator", "pcg_max_iterations", s.pcg.max_iterations));
-    s.pcg.single_precision_matrix =
-        f.boolean(*it, "integrator", "pcg_float_matrix", s.pcg.single_precision_matrix);
-    if (s.pcg.max_iterations < 1)
-      f.fail(it->get("pcg_max_iterations"), "integrator.pcg_max_iterations", "must be >= 1");
-    c.max_halvings = static_cast<int>(f.integer(*it, "integrator", "max_halvings", c.max_halvings));
-    if (c.max_halvings < 0 || c.max_halvings > 20)
-      f.fail(it->get("max_halvings"), "integrator.max_halvings", "must be in [0, 20]");
-    c.explosion_ratio = f.number(*it, "integrator", "explosion_ratio", c.explosion_ratio);
-    if (!(c.explosion_ratio > 0.0))
-      f.fail(it->get("explosion_ratio"), "integrator.explosion_ratio", "must be > 0");
-  }
-  if (const toml::table* dt = f.table(r, "", "device", false)) load_device(f, *dt, path, s);
-  if (const toml::table* ht = f.table(r, "", "haptics", false)) load_haptics(f, *ht, s);
+  load_scene_material(f, path, s);
+  load_mesh(f, s);
+  if (const toml::table* t = f.table(r, "", "pins", false)) load_pins(f, *t, s);
+  if (const toml::table* t = f.table(r, "", "physics", false)) load_physics(f, *t, s);
+  if (const toml::table* t = f.table(r, "", "integrator", false)) load_integrator(f, *t, s);
+  if (const toml::table* t = f.table(r, "", "device", false)) load_device(f, *t, path, s);
+  if (const toml::table* t = f.table(r, "", "haptics", false)) load_haptics(f, *t, s);
   return s;
 }
 

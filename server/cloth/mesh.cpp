@@ -98,9 +98,7 @@ double signed_area_xy(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const 
   return 0.5 * ((b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x()));
 }
 
-}  // namespace
-
-Mesh make_disc(const DiscSpec& s) {
+void check_disc_spec(const DiscSpec& s) {
   const auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
   require(finite_positive(s.radius), "radius", "must be positive and finite");
   require(finite_positive(s.centre_edge), "centre_edge", "must be positive and finite");
@@ -109,10 +107,21 @@ Mesh make_disc(const DiscSpec& s) {
   require(s.centre.allFinite(), "centre", "must be finite");
   require(s.centre_edge <= s.rim_edge, "centre_edge", "must be <= rim_edge");
   require(s.rim_edge < s.radius, "rim_edge", "must be < radius");
+}
 
-  // Ring radii: r_0 = 0 (centre vertex), r_{k+1} = r_k + h_k, h_k = min(centre_edge g^k,
-  // rim_edge); stop at the first ring beyond the radius, then end on it or on the ring
-  // before, whichever needs the smaller uniform rescaling to put the last ring at `radius`.
+// The rings of a disc: ring 0 is the centre vertex, ring k (1..K) holds count[k] vertices from
+// index first[k], at radius r[k], turned by offset[k] of its angular spacing.
+struct Rings {
+  std::vector<double> r;
+  std::vector<int> count, first;
+  std::vector<double> offset;
+  std::size_t rings() const { return r.size() - 1; }
+};
+
+// Ring radii: r_0 = 0 (centre vertex), r_{k+1} = r_k + h_k, h_k = min(centre_edge g^k,
+// rim_edge); stop at the first ring beyond the radius, then end on it or on the ring
+// before, whichever needs the smaller uniform rescaling to put the last ring at `radius`.
+std::vector<double> ring_radii(const DiscSpec& s) {
   constexpr std::size_t kMaxRings = 100000;
   std::vector<double> r{0.0};
   double h = s.centre_edge;
@@ -126,78 +135,102 @@ Mesh make_disc(const DiscSpec& s) {
   const double scale = s.radius / r.back();
   for (double& x : r) x *= scale;
   r.back() = s.radius;
-  const std::size_t K = r.size() - 1;  // number of rings
+  return r;
+}
 
-  // Vertex counts: ring 1 is a hexagon, ring k holds round(2 pi r_k / h_k) vertices with h_k
-  // the mean of the radial spacings on either side (the inner one on the last ring).
-  std::vector<int> count(K + 1, 1), first(K + 1, 0);
+// Vertex counts: ring 1 is a hexagon, ring k holds round(2 pi r_k / h_k) vertices with h_k
+// the mean of the radial spacings on either side (the inner one on the last ring). Returns
+// the total number of vertices.
+double count_ring_vertices(Rings& g) {
+  const std::size_t K = g.rings();
+  const std::vector<double>& r = g.r;
+  g.count.assign(K + 1, 1);
   double total = 1.0;
   for (std::size_t k = 1; k <= K; ++k) {
     const double hk = k < K ? 0.5 * (r[k + 1] - r[k - 1]) : r[k] - r[k - 1];
     const double n = k == 1 ? 6.0 : std::max(6.0, std::round(2.0 * M_PI * r[k] / hk));
     total += n;
     require(total < 2.0e7, "centre_edge", "gives more than 2e7 vertices (too small)");
-    count[k] = static_cast<int>(n);
+    g.count[k] = static_cast<int>(n);
   }
+  return total;
+}
 
+// The centre vertex, then each ring's vertices evenly spaced, neighbouring rings staggered.
+void place_ring_vertices(const Eigen::Vector3d& centre, Rings& g, Mesh& m) {
+  const std::size_t K = g.rings();
+  g.first.assign(K + 1, 0);
+  g.offset.assign(K + 1, 0.0);  // angular offset of each ring, in units of its spacing
+  m.positions.push_back(centre);
+  for (std::size_t k = 1; k <= K; ++k) {
+    g.first[k] = static_cast<int>(m.positions.size());
+    g.offset[k] = (k % 2 == 0) ? 0.5 : 0.0;  // stagger neighbouring rings
+    for (int j = 0; j < g.count[k]; ++j) {
+      const double th = 2.0 * M_PI * (j + g.offset[k]) / g.count[k];
+      m.positions.push_back(centre + Eigen::Vector3d(g.r[k] * std::cos(th), g.r[k] * std::sin(th), 0.0));
+    }
+  }
+}
+
+// A triangle with weave_uv = its corners' rest (x, y) about the centre (weft along x).
+void add_disc_triangle(Mesh& m, const Eigen::Vector3d& centre, int a, int b, int c) {
+  m.triangles.push_back({a, b, c});
+  std::array<std::array<double, 2>, 3> uv;
+  const int v[3] = {a, b, c};
+  for (int q = 0; q < 3; ++q)
+    uv[q] = {m.positions[v[q]].x() - centre.x(), m.positions[v[q]].y() - centre.y()};
+  m.weave_uv.push_back(uv);
+}
+
+// The strip between rings k (inner, A) and k + 1 (outer, B): advance along both rings, each
+// time along the shorter diagonal, never emitting an inverted triangle when the other choice
+// is valid.
+void stitch_rings(const Eigen::Vector3d& centre, const Rings& g, std::size_t k, Mesh& m) {
+  const int na = g.count[k], nb = g.count[k + 1];
+  const auto A = [&](int i) { return g.first[k] + ((i % na) + na) % na; };
+  // Start B at the vertex angularly nearest to A_0.
+  const double tha = 2.0 * M_PI * g.offset[k] / na;
+  int j0 = static_cast<int>(std::lround(tha / (2.0 * M_PI) * nb - g.offset[k + 1]));
+  const auto B = [&](int j) { return g.first[k + 1] + (((j + j0) % nb) + nb) % nb; };
+  int i = 0, j = 0;
+  while (i < na || j < nb) {
+    bool advance_a;
+    if (i == na) {
+      advance_a = false;
+    } else if (j == nb) {
+      advance_a = true;
+    } else {
+      const auto& P = m.positions;
+      advance_a = (P[A(i + 1)] - P[B(j)]).squaredNorm() <= (P[A(i)] - P[B(j + 1)]).squaredNorm();
+      const double area_a = signed_area_xy(P[A(i)], P[B(j)], P[A(i + 1)]);
+      const double area_b = signed_area_xy(P[A(i)], P[B(j)], P[B(j + 1)]);
+      if (advance_a && !(area_a > 0.0) && area_b > 0.0) advance_a = false;
+      if (!advance_a && !(area_b > 0.0) && area_a > 0.0) advance_a = true;
+    }
+    if (advance_a) {
+      add_disc_triangle(m, centre, A(i), B(j), A(i + 1));
+      ++i;
+    } else {
+      add_disc_triangle(m, centre, A(i), B(j), B(j + 1));
+      ++j;
+    }
+  }
+}
+
+}  // namespace
+
+Mesh make_disc(const DiscSpec& s) {
+  check_disc_spec(s);
+  Rings g;
+  g.r = ring_radii(s);
+  const double total = count_ring_vertices(g);
   Mesh m;
   m.positions.reserve(static_cast<std::size_t>(total));
-  m.positions.push_back(s.centre);
-  std::vector<double> offset(K + 1, 0.0);  // angular offset of each ring, in units of its spacing
-  for (std::size_t k = 1; k <= K; ++k) {
-    first[k] = static_cast<int>(m.positions.size());
-    offset[k] = (k % 2 == 0) ? 0.5 : 0.0;  // stagger neighbouring rings
-    for (int j = 0; j < count[k]; ++j) {
-      const double th = 2.0 * M_PI * (j + offset[k]) / count[k];
-      m.positions.push_back(s.centre + Eigen::Vector3d(r[k] * std::cos(th), r[k] * std::sin(th), 0.0));
-    }
-  }
-
-  const auto add = [&](int a, int b, int c) {
-    m.triangles.push_back({a, b, c});
-    std::array<std::array<double, 2>, 3> uv;
-    const int v[3] = {a, b, c};
-    for (int q = 0; q < 3; ++q)
-      uv[q] = {m.positions[v[q]].x() - s.centre.x(), m.positions[v[q]].y() - s.centre.y()};
-    m.weave_uv.push_back(uv);
-  };
-
+  place_ring_vertices(s.centre, g, m);
   // Centre fan.
-  for (int j = 0; j < count[1]; ++j) add(0, first[1] + j, first[1] + (j + 1) % count[1]);
-
-  // Strips between rings k (inner, A) and k + 1 (outer, B).
-  for (std::size_t k = 1; k < K; ++k) {
-    const int na = count[k], nb = count[k + 1];
-    const auto A = [&](int i) { return first[k] + ((i % na) + na) % na; };
-    // Start B at the vertex angularly nearest to A_0.
-    const double tha = 2.0 * M_PI * offset[k] / na;
-    int j0 = static_cast<int>(std::lround(tha / (2.0 * M_PI) * nb - offset[k + 1]));
-    const auto B = [&](int j) { return first[k + 1] + (((j + j0) % nb) + nb) % nb; };
-    int i = 0, j = 0;
-    while (i < na || j < nb) {
-      bool advance_a;
-      if (i == na) {
-        advance_a = false;
-      } else if (j == nb) {
-        advance_a = true;
-      } else {
-        const auto& P = m.positions;
-        advance_a = (P[A(i + 1)] - P[B(j)]).squaredNorm() <= (P[A(i)] - P[B(j + 1)]).squaredNorm();
-        // Never emit an inverted triangle when the other choice is valid.
-        const double area_a = signed_area_xy(P[A(i)], P[B(j)], P[A(i + 1)]);
-        const double area_b = signed_area_xy(P[A(i)], P[B(j)], P[B(j + 1)]);
-        if (advance_a && !(area_a > 0.0) && area_b > 0.0) advance_a = false;
-        if (!advance_a && !(area_b > 0.0) && area_a > 0.0) advance_a = true;
-      }
-      if (advance_a) {
-        add(A(i), B(j), A(i + 1));
-        ++i;
-      } else {
-        add(A(i), B(j), B(j + 1));
-        ++j;
-      }
-    }
-  }
+  for (int j = 0; j < g.count[1]; ++j)
+    add_disc_triangle(m, s.centre, 0, g.first[1] + j, g.first[1] + (j + 1) % g.count[1]);
+  for (std::size_t k = 1; k < g.rings(); ++k) stitch_rings(s.centre, g, k, m);
   return m;
 }
 
