@@ -1,6 +1,8 @@
 #include "hal/device.hpp"
 
 #include <cmath>
+#include <cstddef>
+#include <iterator>
 
 namespace hapticloth::devices {
 
@@ -16,23 +18,24 @@ std::string validate(const DeviceInfo& i) {
   return "";
 }
 
-const char* to_string(Status s) {
-  switch (s) {
-    case Status::Ok: return "ok";
-    case Status::NoData: return "no_data";
-    case Status::Error: return "error";
-  }
-  return "?";
+namespace {
+
+// The name of an enumerator of an enum counted from 0, from the list of names in order.
+template <class E, std::size_t N>
+const char* name_of(E e, const char* const (&names)[N]) {
+  const auto i = static_cast<std::size_t>(e);
+  return i < N ? names[i] : "?";
 }
 
-const char* to_string(Lifecycle s) {
-  switch (s) {
-    case Lifecycle::Unconfigured: return "unconfigured";
-    case Lifecycle::Inactive: return "inactive";
-    case Lifecycle::Active: return "active";
-    case Lifecycle::Failed: return "failed";
-  }
-  return "?";
-}
+constexpr const char* kStatusNames[] = {"ok", "no_data", "error"};
+static_assert(std::size(kStatusNames) == static_cast<std::size_t>(Status::Error) + 1);
+constexpr const char* kLifecycleNames[] = {"unconfigured", "inactive", "active", "failed"};
+static_assert(std::size(kLifecycleNames) == static_cast<std::size_t>(Lifecycle::Failed) + 1);
+
+}  // namespace
+
+const char* to_string(Status s) { return name_of(s, kStatusNames); }
+
+const char* to_string(Lifecycle s) { return name_of(s, kLifecycleNames); }
 
 }  // namespace hapticloth::devices

@@ -8,15 +8,43 @@ DeviceHandle::DeviceHandle(std::unique_ptr<Device> d) : dev_(std::move(d)) {
   if (!dev_) throw std::invalid_argument("device handle: no driver");
 }
 
-std::string DeviceHandle::configure() {
-  if (state_ != Lifecycle::Unconfigured) {
-    error_ = std::string("configure: device is ") + to_string(state_) + ", not unconfigured";
-    return error_;
-  }
+namespace {
+
+// "" if a transition named `step` may start in state `now`, else why not.
+std::string not_in(const char* step, Lifecycle now, Lifecycle from) {
+  if (now == from) return "";
+  return std::string(step) + ": device is " + to_string(now) + ", not " + to_string(from);
+}
+
+// Runs the driver's side of a transition: its error, or what it threw prefixed by the step's
+// name (and `threw` set).
+template <class F>
+std::string call_driver(const char* step, F&& driver_step, bool& threw) {
   try {
-    error_ = dev_->configure();
+    return driver_step();
   } catch (const std::exception& e) {
-    error_ = std::string("configure: ") + e.what();
+    threw = true;
+    return std::string(step) + ": " + e.what();
+  }
+}
+
+// A driver's Error on the real-time path turns the handle Failed.
+Status after_driver(Status st, Lifecycle& state, bool& failed) noexcept {
+  if (st == Status::Error) {
+    state = Lifecycle::Failed;
+    failed = true;
+  }
+  return st;
+}
+
+}  // namespace
+
+std::string DeviceHandle::configure() {
+  error_ = not_in("configure", state_, Lifecycle::Unconfigured);
+  if (!error_.empty()) return error_;
+  bool threw = false;
+  error_ = call_driver("configure", [&] { return dev_->configure(); }, threw);
+  if (threw) {
     state_ = Lifecycle::Failed;
     return error_;
   }
@@ -27,15 +55,10 @@ std::string DeviceHandle::configure() {
 }
 
 std::string DeviceHandle::activate() {
-  if (state_ != Lifecycle::Inactive) {
-    error_ = std::string("activate: device is ") + to_string(state_) + ", not inactive";
-    return error_;
-  }
-  try {
-    error_ = dev_->activate();
-  } catch (const std::exception& e) {
-    error_ = std::string("activate: ") + e.what();
-  }
+  error_ = not_in("activate", state_, Lifecycle::Inactive);
+  if (!error_.empty()) return error_;
+  bool threw = false;
+  error_ = call_driver("activate", [&] { return dev_->activate(); }, threw);
   if (error_.empty()) {
     state_ = Lifecycle::Active;
     failed_ = false;
@@ -55,22 +78,12 @@ void DeviceHandle::deactivate() {
 
 Status DeviceHandle::read(double now, DeviceState& s) noexcept {
   if (state_ != Lifecycle::Active) return Status::Error;
-  const Status st = dev_->read(now, s);
-  if (st == Status::Error) {
-    state_ = Lifecycle::Failed;
-    failed_ = true;
-  }
-  return st;
+  return after_driver(dev_->read(now, s), state_, failed_);
 }
 
 Status DeviceHandle::write(double now, const DeviceCommand& c) noexcept {
   if (state_ != Lifecycle::Active) return Status::Error;
-  const Status st = dev_->write(now, c);
-  if (st == Status::Error) {
-    state_ = Lifecycle::Failed;
-    failed_ = true;
-  }
-  return st;
+  return after_driver(dev_->write(now, c), state_, failed_);
 }
 
 }  // namespace hapticloth::devices

@@ -62,7 +62,8 @@ class DeviceLogWriter {
 /// column, not a number, time going backwards, finger index out of range).
 std::vector<LogRow> load_device_log(const std::string& path);
 
-/// Splits a comma-separated line, trimming blanks (shared by the CSV readers of devices/).
+/// Splits a comma-separated line, trimming blanks (shared by the CSV readers of devices/ and the
+/// measured KES points of server/app/kes.cpp).
 std::vector<std::string> split_csv(const std::string& line);
 /// Parses a finite number or throws std::invalid_argument "PATH:LINE: FIELD 'text' is not a number".
 double parse_number(const std::string& text, const std::string& path, int line, const char* field);

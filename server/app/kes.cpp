@@ -13,6 +13,7 @@
 #include "cloth/mesh.hpp"
 #include "cloth/model.hpp"
 #include "cloth/statics.hpp"
+#include "log/device_log.hpp"
 
 namespace hapticloth::app {
 
@@ -370,13 +371,7 @@ KesMeasured load_measured(const std::string& path, KesTest test) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     const auto first = line.find_first_not_of(" \t");
     if (first == std::string::npos || line[first] == '#') continue;
-    std::vector<std::string> cols;
-    std::stringstream ss(line);
-    std::string c;
-    while (std::getline(ss, c, ',')) {
-      const auto b = c.find_first_not_of(" \t"), e = c.find_last_not_of(" \t");
-      cols.push_back(b == std::string::npos ? "" : c.substr(b, e - b + 1));
-    }
+    const std::vector<std::string> cols = devices::split_csv(line);
     if (!header) {
       for (int i = 0; i < static_cast<int>(cols.size()); ++i) {
         if (cols[i] == "test") ct = i;

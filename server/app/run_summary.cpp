@@ -65,6 +65,18 @@ RunSummary run_headless(const Scene& scene, long steps) {
   return r;
 }
 
+nlohmann::json events_json(const cloth::IntegratorEvents& e) {
+  return {{"non_finite", e.non_finite},
+          {"solver_not_converged", e.solver_not_converged},
+          {"solver_error", e.solver_error},
+          {"not_positive_definite", e.not_positive_definite},
+          {"jacobian_fallbacks", e.jacobian_fallbacks},
+          {"energy_explosions", e.energy_explosions},
+          {"alpha_fallbacks", e.alpha_fallbacks},
+          {"retries", e.retries},
+          {"restores", e.restores}};
+}
+
 std::string RunSummary::to_json() const {
   nlohmann::json j;
   j["scene"] = scene;
@@ -85,15 +97,7 @@ std::string RunSummary::to_json() const {
   j["lowest_vertex_height_m"] = lowest_height;
   j["finite"] = finite;
   j["wall_s"] = wall_s;
-  j["events"] = {{"non_finite", events.non_finite},
-                 {"solver_not_converged", events.solver_not_converged},
-                 {"solver_error", events.solver_error},
-                 {"not_positive_definite", events.not_positive_definite},
-                 {"jacobian_fallbacks", events.jacobian_fallbacks},
-                 {"energy_explosions", events.energy_explosions},
-                 {"alpha_fallbacks", events.alpha_fallbacks},
-                 {"retries", events.retries},
-                 {"restores", events.restores}};
+  j["events"] = events_json(events);
   return j.dump();
 }
 

@@ -4,6 +4,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "app/scene_file.hpp"
 
 namespace hapticloth::app {
@@ -29,6 +31,10 @@ struct RunSummary {
   std::string to_json() const;
   std::string to_text() const;
 };
+
+/// The integrator's event counters as one JSON object, a key per counter (the run summary's
+/// "events" and the benchmarks').
+nlohmann::json events_json(const cloth::IntegratorEvents& e);
 
 /// Steps the scene headless `steps` times, as fast as possible.
 RunSummary run_headless(const Scene& scene, long steps);

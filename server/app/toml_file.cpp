@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <sstream>
+#include <type_traits>
 
 namespace hapticloth::app {
 
@@ -40,54 +41,53 @@ const toml::node* TomlFile::find(const toml::table& t, const std::string& key) c
   return t.get(key);
 }
 
-double TomlFile::number(const toml::table& t, const std::string& prefix, const std::string& key,
-                        std::optional<double> fallback) const {
+namespace {
+
+// Whether a node holds a T (a number may be an integer or a float).
+template <class T>
+bool holds(const toml::node& n) {
+  if constexpr (std::is_same_v<T, double>) return n.is_number();
+  else if constexpr (std::is_same_v<T, long long>) return n.is_integer();
+  else if constexpr (std::is_same_v<T, bool>) return n.is_boolean();
+  else return n.is_string();
+}
+
+// t[key] as a T, or the fallback when absent; `what` names the type in messages ("a number").
+template <class T>
+T scalar(const TomlFile& f, const toml::table& t, const std::string& prefix, const std::string& key,
+         const std::optional<T>& fallback, const std::string& what) {
   const toml::node* n = t.get(key);
-  const std::string k = join(prefix, key);
+  const std::string k = TomlFile::join(prefix, key);
   if (!n) {
     if (fallback) return *fallback;
-    fail(&t, k, "missing (a number is required)");
+    f.fail(&t, k, "missing (" + what + " is required)");
   }
-  if (!n->is_number()) fail(n, k, "expected a number");
-  const double v = n->value<double>().value();
-  if (!std::isfinite(v)) fail(n, k, "must be finite");
+  if (!holds<T>(*n)) f.fail(n, k, "expected " + what);
+  return n->value<T>().value();
+}
+
+}  // namespace
+
+double TomlFile::number(const toml::table& t, const std::string& prefix, const std::string& key,
+                        std::optional<double> fallback) const {
+  const double v = scalar<double>(*this, t, prefix, key, fallback, "a number");
+  if (!std::isfinite(v)) fail(t.get(key), join(prefix, key), "must be finite");
   return v;
 }
 
 long long TomlFile::integer(const toml::table& t, const std::string& prefix,
                             const std::string& key, std::optional<long long> fallback) const {
-  const toml::node* n = t.get(key);
-  const std::string k = join(prefix, key);
-  if (!n) {
-    if (fallback) return *fallback;
-    fail(&t, k, "missing (an integer is required)");
-  }
-  if (!n->is_integer()) fail(n, k, "expected an integer");
-  return n->value<long long>().value();
+  return scalar<long long>(*this, t, prefix, key, fallback, "an integer");
 }
 
 bool TomlFile::boolean(const toml::table& t, const std::string& prefix, const std::string& key,
                        std::optional<bool> fallback) const {
-  const toml::node* n = t.get(key);
-  const std::string k = join(prefix, key);
-  if (!n) {
-    if (fallback) return *fallback;
-    fail(&t, k, "missing (true or false is required)");
-  }
-  if (!n->is_boolean()) fail(n, k, "expected true or false");
-  return n->value<bool>().value();
+  return scalar<bool>(*this, t, prefix, key, fallback, "true or false");
 }
 
 std::string TomlFile::string(const toml::table& t, const std::string& prefix,
                              const std::string& key, std::optional<std::string> fallback) const {
-  const toml::node* n = t.get(key);
-  const std::string k = join(prefix, key);
-  if (!n) {
-    if (fallback) return *fallback;
-    fail(&t, k, "missing (a string is required)");
-  }
-  if (!n->is_string()) fail(n, k, "expected a string");
-  return n->value<std::string>().value();
+  return scalar<std::string>(*this, t, prefix, key, fallback, "a string");
 }
 
 std::vector<double> TomlFile::numbers(const toml::table& t, const std::string& prefix,

@@ -161,15 +161,7 @@ TEST(Haptics, DepthDoesNotDependOnWhereInTheTrianglePressed) {
 // (friction holds it: the pinched point follows), then open (it falls back).
 TEST(Haptics, PinchLiftAndRelease) {
   const double r = 0.008;
-  cloth::GridSpec g;
-  g.width = g.height = 0.3;
-  g.nx = g.ny = 20;
-  g.origin = {-0.15, -0.15, 0.0};
-  const auto mesh = cloth::make_grid(g);
-  std::vector<int> pins;
-  for (const char* e : {"left", "right"})
-    for (int v : cloth::grid_edge(mesh, e)) pins.push_back(v);
-  auto model = cloth::build_model(mesh, test::denim(), pins);
+  auto model = test::square_cloth(test::denim(), {"left", "right"});
   devices::Trajectory t(2);
   const double x = 0.004, y = 0.003;
   const double squeeze = 0.0025;  // each finger 2.5 mm into the cloth

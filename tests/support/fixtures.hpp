@@ -1,7 +1,9 @@
 // Shared test fixtures: materials built inline, random deformed triangles.
 #pragma once
 
+#include <initializer_list>
 #include <random>
+#include <vector>
 
 #include <Eigen/Geometry>
 
@@ -31,18 +33,26 @@ inline cloth::Material denim(double viscosity = 0.0, double scale = 1.0) {
   return m;
 }
 
-/// A horizontal square of denim (z = 0, centred on the origin) pinned on its four edges, n x n
-/// quads: the drum of the haptics tests.
-inline cloth::ClothModel denim_drum(int n = 20, double size = 0.3) {
+/// A horizontal square of cloth (z = 0, centred on the origin), n x n quads, pinned on the named
+/// grid edges ("top", "bottom", "left", "right").
+inline cloth::ClothModel square_cloth(const cloth::Material& m,
+                                      std::initializer_list<const char*> pinned_edges, int n = 20,
+                                      double size = 0.3) {
   cloth::GridSpec g;
   g.width = g.height = size;
   g.nx = g.ny = n;
   g.origin = {-size / 2, -size / 2, 0.0};
   const auto mesh = cloth::make_grid(g);
   std::vector<int> pins;
-  for (const char* e : {"top", "bottom", "left", "right"})
+  for (const char* e : pinned_edges)
     for (int v : cloth::grid_edge(mesh, e)) pins.push_back(v);
-  return cloth::build_model(mesh, denim(), pins);
+  return cloth::build_model(mesh, m, pins);
+}
+
+/// A horizontal square of denim (z = 0, centred on the origin) pinned on its four edges, n x n
+/// quads: the drum of the haptics tests.
+inline cloth::ClothModel denim_drum(int n = 20, double size = 0.3) {
+  return square_cloth(denim(), {"top", "bottom", "left", "right"}, n, size);
 }
 
 /// A triangle in weave space and a random deformation of it: `kind` 0 = mild stretch,

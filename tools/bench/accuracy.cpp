@@ -9,11 +9,13 @@
 #include <iostream>
 #include <limits>
 
+#include "app/run_summary.hpp"
 #include "app/scene_file.hpp"
 #include "bench_common.hpp"
 #include "cloth/integrator.hpp"
 #include "cloth/mesh.hpp"
 #include "mock/trajectory.hpp"
+#include "support/fixtures.hpp"
 
 namespace hapticloth::bench {
 
@@ -126,16 +128,6 @@ std::vector<int> nested_map(const cloth::ClothModel& coarse, const cloth::ClothM
   return map;
 }
 
-json events_json(const cloth::IntegratorEvents& e) {
-  return {{"retries", e.retries},
-          {"restores", e.restores},
-          {"energy_explosions", e.energy_explosions},
-          {"alpha_fallbacks", e.alpha_fallbacks},
-          {"non_finite", e.non_finite},
-          {"solver_not_converged", e.solver_not_converged},
-          {"not_positive_definite", e.not_positive_definite}};
-}
-
 // Pareto front of (cost, error) over the runs that finished without an abandoned step: a run is
 // on the front when no other run is both cheaper and more accurate.
 void mark_front(json& runs, const char* err_key, const char* flag) {
@@ -168,10 +160,8 @@ std::vector<double> sample_times(double first, double step, double last) {
 
 json accuracy(const AccuracyOptions& opt) {
   const bool quick = opt.quick;
-  const app::Scene sc = app::load_scene(opt.source_dir + "/tools/scenes/hanging_square.toml");
-  auto say = [&](const std::string& s) {
-    if (opt.verbose) std::cerr << "accuracy: " << s << std::endl;
-  };
+  const app::Scene sc = main_scene(opt.source_dir);
+  const auto say = progress("accuracy", opt.verbose);
   // The reference: dt 0.05 ms (0.25 ms with --quick), alpha 0.5 (second order), PCG to 1e-10 in
   // double precision.
   RunConfig ref_cfg;
@@ -226,7 +216,7 @@ json accuracy(const AccuracyOptions& opt) {
       json r = config_json(c);
       r["cpu_s_per_sim_s"] = tr.cpu / tr.sim;
       r["pos_err_mm"] = tr.finite ? 1e3 * position_error(tr, rf, map) : std::numeric_limits<double>::quiet_NaN();
-      r["events"] = events_json(tr.events);
+      r["events"] = app::events_json(tr.events);
       r["stable"] = tr.finite && tr.events.restores == 0;
       runs.push_back(r);
     };
@@ -283,18 +273,9 @@ json accuracy(const AccuracyOptions& opt) {
   // 3% (an embroidery hoop: a membrane without bending resists a press only through tension),
   // under gravity; finger 0 comes down on it at (3, 2) mm from the centre, presses 4 mm into
   // it, holds and leaves. Finger 1 stays away.
-  cloth::ClothModel drum;
+  const cloth::ClothModel drum = test::square_cloth(sc.material, {"top", "bottom", "left", "right"});
   cloth::ClothState drum_start;
   {
-    cloth::GridSpec g;
-    g.width = g.height = 0.3;
-    g.nx = g.ny = 20;
-    g.origin = {-0.15, -0.15, 0.0};
-    const auto mesh = cloth::make_grid(g);
-    std::vector<int> pins;
-    for (const char* e : {"top", "bottom", "left", "right"})
-      for (int v : cloth::grid_edge(mesh, e)) pins.push_back(v);
-    drum = cloth::build_model(mesh, sc.material, pins);
     cloth::ClothState stretched = cloth::rest_state(drum);
     for (auto& x : stretched.x) x.head<2>() *= 1.03;
     drum_start = settle(sc, drum, stretched, defaults.dt, 2.0);  // 2 s: settles the sag
@@ -356,7 +337,7 @@ json accuracy(const AccuracyOptions& opt) {
       r["pos_err_mm"] = tr.finite ? 1e3 * position_error(tr, ref, {}) : nan;
       r["force_err_rel"] = tr.finite ? fe : nan;
       r["force_err_max_n"] = tr.finite ? fmax : nan;
-      r["events"] = events_json(tr.events);
+      r["events"] = app::events_json(tr.events);
       r["stable"] = tr.finite && tr.events.restores == 0;
       runs.push_back(r);
     }

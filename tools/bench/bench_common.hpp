@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <functional>
+#include <iostream>
 #include <stdexcept>
 #include <memory>
 #include <string>
@@ -21,6 +23,18 @@
 #include "cloth/solver.hpp"
 
 namespace hapticloth::bench {
+
+/// The main job's scene (tools/scenes/hanging_square.toml) of the source tree `source_dir`.
+inline app::Scene main_scene(const std::string& source_dir) {
+  return app::load_scene(source_dir + "/tools/scenes/hanging_square.toml");
+}
+
+/// A benchmark's progress lines on stderr ("NAME: what"), when `verbose`.
+inline std::function<void(const std::string&)> progress(const std::string& name, bool verbose) {
+  return [name, verbose](const std::string& s) {
+    if (verbose) std::cerr << name << ": " << s << std::endl;
+  };
+}
 
 /// Settings of one run (what a sweep varies).
 struct RunConfig {

@@ -63,15 +63,13 @@ FineRun run(const app::Scene& sc, const cloth::ClothModel& m, const cloth::Cloth
 }  // namespace
 
 json fine_cloth(const AccuracyOptions& opt) {
-  const app::Scene sc = app::load_scene(opt.source_dir + "/tools/scenes/hanging_square.toml");
+  const app::Scene sc = main_scene(opt.source_dir);
   app::Scene fine = app::load_scene(opt.fine_scene.empty()
                                         ? opt.source_dir + "/tools/scenes/hanging_square_16k.toml"
                                         : opt.fine_scene);
   fine.haptics = sc.haptics;  // the device, mapping and fingertip of the main job
   fine.device = sc.device;
-  auto say = [&](const std::string& s) {
-    if (opt.verbose) std::cerr << "fine-cloth: " << s << std::endl;
-  };
+  const auto say = progress("fine-cloth", opt.verbose);
   const cloth::ClothModel m = app::build_model(fine);
   say("settling " + std::to_string(m.num_triangles()) + " triangles (CHOLMOD, dt 20 ms)");
   const cloth::ClothState start = settle(fine, m, cloth::rest_state(m), 0.02, sc.preroll);

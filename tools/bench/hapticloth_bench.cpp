@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <sstream>
 #include <vector>
@@ -201,39 +202,28 @@ int main(int argc, char** argv) {
                                   "(options: hapticloth-bench transport --help)");
   if (const int rc = opts::parse(cli, argc, argv); rc >= 0) return rc;
 
+  // The benchmarks that return one JSON result, and whether --plot applies to them.
+  struct JsonBenchmark {
+    const CLI::App* command;
+    std::function<nlohmann::json()> run;
+    bool plot;
+  };
+  const std::string source_dir = HAPTICLOTH_SOURCE_DIR;
+  const JsonBenchmark json_benchmarks[] = {
+      {acc, [&] {
+         const bench::AccuracyOptions o{.quick = quick, .source_dir = source_dir, .fine_scene = fine_scene};
+         return fine_cloth ? bench::fine_cloth(o) : bench::accuracy(o);
+       }, !fine_cloth},
+      {stab, [&] { return bench::stability({.quick = quick, .source_dir = source_dir, .random_steps = random_steps}); },
+       true},
+      {lim, [&] { return bench::limit({.quick = quick, .source_dir = source_dir}); }, false},
+      {fid, [&] { return bench::fidelity({.quick = quick}); }, false},
+      {late, [&] { return bench::late_ticks({.source_dir = source_dir, .seed = late_seed}); }, false},
+  };
+
   try {
-    if (*acc) {
-      bench::AccuracyOptions o;
-      o.quick = quick;
-      o.source_dir = HAPTICLOTH_SOURCE_DIR;
-      o.fine_scene = fine_scene;
-      if (fine_cloth) return finish(bench::fine_cloth(o), json, "");
-      return finish(bench::accuracy(o), json, png);
-    }
-    if (*stab) {
-      bench::StabilityOptions o;
-      o.quick = quick;
-      o.random_steps = random_steps;
-      o.source_dir = HAPTICLOTH_SOURCE_DIR;
-      return finish(bench::stability(o), json, png);
-    }
-    if (*lim) {
-      bench::LimitOptions o;
-      o.quick = quick;
-      o.source_dir = HAPTICLOTH_SOURCE_DIR;
-      return finish(bench::limit(o), json, "");
-    }
-    if (*fid) {
-      bench::FidelityOptions o;
-      o.quick = quick;
-      return finish(bench::fidelity(o), json, "");
-    }
-    if (*late) {
-      bench::LateTickOptions o;
-      o.source_dir = HAPTICLOTH_SOURCE_DIR;
-      o.seed = late_seed;
-      return finish(bench::late_ticks(o), json, "");
-    }
+    for (const JsonBenchmark& b : json_benchmarks)
+      if (*b.command) return finish(b.run(), json, b.plot ? png : "");
     if (*haptic) {
       app::Scene scene = app::load_scene(haptic_scene);
       if (!scene.has_device) throw std::runtime_error(haptic_scene + ": no [device] table");

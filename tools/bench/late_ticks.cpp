@@ -87,7 +87,7 @@ RunOutcome run(const app::Scene& sc, const cloth::ClothModel& m, const cloth::Cl
 }  // namespace
 
 json late_ticks(const LateTickOptions& opt) {
-  const app::Scene sc = app::load_scene(opt.source_dir + "/tools/scenes/hanging_square.toml");
+  const app::Scene sc = main_scene(opt.source_dir);
   const cloth::ClothModel m = app::build_model(sc);
   const cloth::ClothState start = settle(sc, m, cloth::rest_state(m), 5e-3, sc.preroll);
   const devices::Trajectory script =

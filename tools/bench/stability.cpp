@@ -5,6 +5,7 @@
 #include <random>
 
 #include "accuracy.hpp"
+#include "app/run_summary.hpp"
 #include "bench_common.hpp"
 #include "haptics/geometry.hpp"
 #include "mock/trajectory.hpp"
@@ -146,12 +147,8 @@ json verdict(const Outcome& o, double energy_bound, double penetration_tol) {
             {"contact_ticks", o.contact_ticks},
             {"contact_checks", o.contact_checks},
             {"penetration_over_tol_checks", o.deep_checks},
-            {"retries", o.events.retries},
-            {"restores", o.events.restores},
-            {"solver_not_converged", o.events.solver_not_converged},
-            {"energy_explosions", o.events.energy_explosions},
-            {"alpha_fallbacks", o.events.alpha_fallbacks},
             {"cpu_s_per_sim_s", o.cpu / o.sim}};
+  j.update(app::events_json(o.events));  // the integrator's counters beside the outcome
   if (!why.empty()) j["failure"] = why;
   return j;
 }
@@ -160,10 +157,8 @@ json verdict(const Outcome& o, double energy_bound, double penetration_tol) {
 
 json stability(const StabilityOptions& opt) {
   const bool quick = opt.quick;
-  const app::Scene sc = app::load_scene(opt.source_dir + "/tools/scenes/hanging_square.toml");
-  auto say = [&](const std::string& s) {
-    if (opt.verbose) std::cerr << "stability: " << s << std::endl;
-  };
+  const app::Scene sc = main_scene(opt.source_dir);
+  const auto say = progress("stability", opt.verbose);
   const std::vector<double> dts = quick ? std::vector<double>{1e-3, 20e-3} : std::vector<double>{1e-3, 5e-3, 20e-3, 40e-3};
   const std::vector<double> scales = quick ? std::vector<double>{1, 1000} : std::vector<double>{1, 10, 100, 1000};
   const std::vector<double> speeds = quick ? std::vector<double>{0.5, 2.0} : std::vector<double>{0.1, 0.5, 2.0};
