@@ -236,6 +236,22 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
   if (!stopped.empty()) out << "stopped          " << stopped << "\n";
 }
 
+// 1 if the device failed during the session (a driver Error turned its handle Failed) or its
+// record could not be written, each said on stderr; else 0.
+int exit_status(const devices::DeviceHandle& dev, const haptics::Session& session) {
+  int rc = 0;
+  if (dev.failed_since_activation()) {
+    std::cerr << "hapticloth-server: device " << dev.info().name << " failed during the session ("
+              << session.report().device_errors << " device errors)\n";
+    rc = 1;
+  }
+  if (const std::string record_error = dev.last_error(); !record_error.empty()) {
+    std::cerr << "hapticloth-server: " << record_error << "\n";
+    rc = 1;
+  }
+  return rc;
+}
+
 }  // namespace
 
 // Plan, build, run, report.
@@ -243,7 +259,7 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   const cloth::ClothModel model = build_model(scene);
   const double duration = opt.duration > 0.0 ? opt.duration : scene.duration;
   // The device first (a UDP rig can start streaming while the cloth settles).
-  devices::DeviceHandle dev(devices::make_device(scene.device));
+  devices::DeviceHandle dev(opt.make_device ? opt.make_device(scene.device) : devices::make_device(scene.device));
   if (const std::string e = dev.configure(); !e.empty()) throw ConfigError("device: " + e);
   const Plan p = plan(scene, model, dev, opt.stop);
   haptics::Session session(model, scene.integrator, cloth::make_solver(scene.solver, scene.pcg),
@@ -253,9 +269,7 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   const auto hub = connect_transport(scene, opt, p.session, dev, session, drops, out);
   const std::string stopped = run(scene, opt, model, dev, p, duration, session, *hub, out);
   report(scene, opt, dev, p, session, *hub, stopped, out);
-  const std::string record_error = dev.last_error();
-  if (!record_error.empty()) std::cerr << "hapticloth-server: " << record_error << "\n";
-  return dev.failed_since_activation() || !record_error.empty() ? 1 : 0;
+  return exit_status(dev, session);
 }
 
 }  // namespace hapticloth::app

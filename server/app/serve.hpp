@@ -6,6 +6,7 @@
 #include <string>
 
 #include "app/scene_file.hpp"
+#include "registry.hpp"
 #include "transport/options.hpp"
 
 namespace hapticloth::app {
@@ -21,11 +22,15 @@ struct ServeOptions {
   /// Set by a stop signal (install_stop_signals): the preroll and the session end at once,
   /// the summary says so.
   const std::atomic<bool>* stop = nullptr;
+  /// Makes the driver from scene.device; empty: the registry's (devices::make_device). Tests
+  /// give their own, such as a device that fails during the session.
+  devices::DeviceFactory make_device;
 };
 
 /// Settles the scene for its preroll, starts the device and the session, runs, and prints what
 /// it did (stages on and why, loop statistics, contacts, device and gate counters).
-/// Returns 0, or 1 if the device failed. Throws ConfigError / std::runtime_error on bad set-up.
+/// Returns 0, or 1 if the device failed during the session or its record could not be written
+/// (either said on stderr). Throws ConfigError / std::runtime_error on bad set-up.
 int serve(Scene scene, const ServeOptions& opt, std::ostream& out);
 
 }  // namespace hapticloth::app
