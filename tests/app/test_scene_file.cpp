@@ -1,0 +1,206 @@
+// Scene files (server/app/scene_file): the shipped scene, a valid one, OBJ meshes in a scene,
+// and bad scenes whose errors name the file, the line and the key (support/config_files.hpp).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "app/scene_file.hpp"
+#include "cloth/element.hpp"
+#include "cloth/model.hpp"
+#include "support/config_files.hpp"
+
+namespace {
+
+using hapticloth::app::load_scene;
+using namespace hapticloth::test;
+
+const std::string kSourceDir = HAPTICLOTH_SOURCE_DIR;
+
+// A valid scene next to the material "cloth.toml"; the bad cases replace one line of it.
+const std::string kScene =
+    "name = \"test scene\"\n"                        // 1
+    "material = \"cloth.toml\"\n"                    // 2
+    "\n"                                             // 3
+    "[mesh]\n"                                       // 4
+    "type = \"grid\"\n"                              // 5
+    "size = [1.0, 1.0]\n"                            // 6
+    "resolution = [4, 4]\n"                          // 7
+    "\n"                                             // 8
+    "[pins]\n"                                       // 9
+    "edges = [\"top\"]\n"                            // 10
+    "\n"                                             // 11
+    "[integrator]\n"                                 // 12
+    "dt = 0.01\n"                                    // 13
+    "alpha = 1.0\n"                                  // 14
+    "solver = \"pcg\"\n";                            // 15
+
+// The strip scene lives in a sub-folder; its paths are relative to that folder.
+std::string obj_scene(const std::string& weave_lines) {
+  return "material = \"../cloth.toml\"\n"
+         "[mesh]\n"
+         "type = \"obj\"\n"
+         "path = \"../meshes/strip.obj\"\n" +
+         weave_lines;
+}
+
+class SceneFileTest : public hapticloth::test::FilesTest {
+ protected:
+  /// Writes the material and the scene and loads the scene.
+  hapticloth::app::Scene scene(const std::string& scene_text) {
+    write("cloth.toml", kMaterial);
+    return load_scene(write("scene.toml", scene_text));
+  }
+};
+
+TEST(ShippedFiles, HangingSquareScene) {
+  const auto s = load_scene(kSourceDir + "/tools/scenes/hanging_square.toml");
+  EXPECT_EQ(s.name, "hanging_square");
+  EXPECT_EQ(s.mesh.triangles.size(), 968u);
+  EXPECT_EQ(s.mesh.positions.size(), 529u);
+  EXPECT_EQ(s.mesh.weave_uv.size(), 968u);
+  ASSERT_EQ(s.pins.size(), 23u);
+  for (int v : s.pins) {
+    ASSERT_GE(v, 0);
+    ASSERT_LT(v, 529);
+    EXPECT_NEAR(s.mesh.positions[v].y(), 0.25, 1e-12) << "pinned vertex " << v;
+  }
+  int top = 0;
+  for (const auto& p : s.mesh.positions) top += std::abs(p.y() - 0.25) < 1e-12;
+  EXPECT_EQ(top, 23) << "every vertex of the top edge is pinned";
+  EXPECT_DOUBLE_EQ(s.integrator.dt, 0.001);
+  EXPECT_DOUBLE_EQ(s.integrator.alpha, 1.0);
+  EXPECT_EQ(s.solver, "pcg");
+  EXPECT_DOUBLE_EQ(s.material.areal_density, 0.324);
+  EXPECT_NE(s.material_path.find("denim-handmade.toml"), std::string::npos);
+}
+
+TEST_F(SceneFileTest, ValidSceneLoads) {
+  const auto s = scene(kScene);
+  EXPECT_EQ(s.name, "test scene");
+  EXPECT_EQ(s.mesh.triangles.size(), 32u);
+  EXPECT_EQ(s.mesh.positions.size(), 25u);
+  EXPECT_EQ(s.pins.size(), 5u);
+  EXPECT_DOUBLE_EQ(s.integrator.dt, 0.01);
+  EXPECT_DOUBLE_EQ(s.material.areal_density, 0.3);
+  EXPECT_EQ(s.material_path, (dir_ / "cloth.toml").string());
+}
+
+TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
+  const std::string missing_material = (dir_ / "missing.toml").string();
+  // Direct coupling solves the fingertip spheres with the cloth: the local patch's kernel keys
+  // are rejected there, with what replaced them.
+  const std::string direct = kScene + "\n[haptics]\nlocal_patch = \"off\"\n";
+  const std::vector<BadFile> cases = {
+      {"UnknownTopLevelKey", with_line(kScene, 3, "gravity = [0.0, 0.0, -9.81]"), 3,
+       {"key 'gravity'", "unknown key", "physics"}},
+      {"KernelKeyWithDirectCoupling", direct + "kernel_radius = 0.02\n", 19,
+       {"haptics.kernel_radius", "local_patch = \"on\"", "contact_stiffness"}},
+      {"NegativeContactStiffness", direct + "contact_stiffness = -1\n", 19,
+       {"haptics.contact_stiffness", "must be > 0"}},
+      {"KernelKeyWithTheResponseModel", kScene + "\n[haptics]\nlocal_patch = \"on\"\nkernel_radius = 0.02\n", 19,
+       {"haptics.kernel_radius", "local_model = \"patch\""}},
+      {"UnknownLocalModel", kScene + "\n[haptics]\nlocal_model = \"springs\"\n", 18,
+       {"haptics.local_model", "\"response\" or \"patch\""}},
+      {"UnknownDeviceDriver", kScene + "\n[device]\ndriver = \"phantom\"\n", 18,
+       {"key 'device.driver'", "unknown driver 'phantom'", "mock"}},
+      {"AlphaOutOfRange", with_line(kScene, 14, "alpha = 0.3"), 14, {"key 'integrator.alpha'", "[0.5, 1]"}},
+      {"ZeroTimeStep", with_line(kScene, 13, "dt = 0"), 13, {"key 'integrator.dt'", "must be > 0"}},
+      {"UnknownSolver", with_line(kScene, 15, "solver = \"lu\""), 15, {"key 'integrator.solver'", "\"pcg\""}},
+      {"UnknownMeshType", with_line(kScene, 5, "type = \"sphere\""), 5, {"key 'mesh.type'", "\"grid\" or \"obj\""}},
+      {"ZeroResolution", with_line(kScene, 7, "resolution = [0, 5]"), 7, {"key 'mesh.resolution'", "[1, 2000]"}},
+      {"UnknownPinEdge", with_line(kScene, 10, "edges = [\"middle\"]"), 10, {"key 'pins.edges'", "'middle'"}},
+      {"PinVertexOutOfRange", with_line(kScene, 10, "vertices = [100000]"), 10,
+       {"key 'pins.vertices'", "100000", "[0, 25)"}},
+      {"MissingMaterialFile", with_line(kScene, 2, "material = \"missing.toml\""), 2,
+       {"key 'material'", missing_material, "cannot open"}},
+  };
+  const auto path = (dir_ / "scene.toml").string();
+  for (const BadFile& c : cases) expect_bad_file(c, path, [&] { scene(c.text); });
+  EXPECT_NO_THROW(scene(kScene + "\n[haptics]\nlocal_patch = \"on\"\nlocal_model = \"patch\"\nkernel_radius = 0.02\n"));
+}
+
+TEST_F(SceneFileTest, ErrorInMaterialNamesTheMaterialFile) {
+  // The scene is fine; the error is in the material it refers to.
+  write("bad_cloth.toml", with_line(kMaterial, 2, "areal_density = -1"));
+  const auto material = (dir_ / "bad_cloth.toml").string();
+  expect_config_error([&] { scene(with_line(kScene, 2, "material = \"bad_cloth.toml\"")); },
+                      {material + at_line(2), "key 'areal_density'"});
+}
+
+// ---------------------------------------------------------------------------------------------
+// OBJ meshes in a scene: the weave directions from the texture coordinates
+
+TEST_F(SceneFileTest, ObjSceneUvDirections) {
+  write("cloth.toml", kMaterial);
+  write("meshes/strip.obj", kStripObj);
+  const auto path = write("scenes/strip.toml", obj_scene("weave = \"uv-directions\"\n"));
+  const auto s = load_scene(path);
+  EXPECT_EQ(s.mesh.triangles.size(), 4u);
+  EXPECT_EQ(s.mesh.positions.size(), 6u);
+  EXPECT_EQ(s.material_path, (dir_ / "cloth.toml").string());
+
+  // Only directions come from the texture: lengths are those of the 3D rest shape.
+  const auto model = hapticloth::app::build_model(s);
+  ASSERT_EQ(model.num_triangles(), 4);
+  EXPECT_NEAR(model.total_area, 2.0, 1e-12);
+  for (const auto& e : model.elements) {
+    const auto& x = model.rest_positions;
+    const auto eps = hapticloth::cloth::element_strains(e, x[e.v[0]], x[e.v[1]], x[e.v[2]]);
+    EXPECT_NEAR(eps.uu, 0.0, 1e-12);
+    EXPECT_NEAR(eps.vv, 0.0, 1e-12);
+    EXPECT_NEAR(eps.uv, 0.0, 1e-12);
+    // The weft runs along increasing texture u, here +x.
+    const hapticloth::cloth::Vec3 U =
+        e.ru[0] * x[e.v[0]] + e.ru[1] * x[e.v[1]] + e.ru[2] * x[e.v[2]];
+    EXPECT_NEAR(U.x(), 1.0, 1e-12);
+  }
+}
+
+TEST_F(SceneFileTest, ObjSceneUvMetric) {
+  write("cloth.toml", kMaterial);
+  write("meshes/strip.obj", kStripObj);
+
+  // Texture coordinates are half the positions: uv_scale = 2 makes them metres of cloth, and
+  // without it the cloth is half as long as the mesh: it starts stretched by 100%.
+  for (const auto& [scale_line, area, strain] : {std::tuple{"uv_scale = 2.0\n", 2.0, 0.0},
+                                                 std::tuple{"", 0.5, 1.0}}) {
+    SCOPED_TRACE(scale_line);
+    const auto s = load_scene(
+        write("scenes/strip.toml", obj_scene(std::string("weave = \"uv-metric\"\n") + scale_line)));
+    const auto model = hapticloth::app::build_model(s);
+    ASSERT_EQ(model.num_triangles(), 4);
+    EXPECT_NEAR(model.total_area, area, 1e-12);
+    for (const auto& e : model.elements) {
+      const auto& x = model.rest_positions;
+      const auto eps = hapticloth::cloth::element_strains(e, x[e.v[0]], x[e.v[1]], x[e.v[2]]);
+      EXPECT_NEAR(eps.uu, strain, 1e-12);
+      EXPECT_NEAR(eps.vv, strain, 1e-12);
+      EXPECT_NEAR(eps.uv, 0.0, 1e-12);
+    }
+  }
+}
+
+TEST_F(SceneFileTest, ObjSceneBadWeave) {
+  write("cloth.toml", kMaterial);
+  write("meshes/strip.obj", kStripObj);
+  const auto path = write("scenes/strip.toml", obj_scene("weave = \"uv\"\n"));
+  expect_config_error([&] { load_scene(path); }, {path, at_line(5), "key 'mesh.weave'"});
+}
+
+TEST_F(SceneFileTest, ObjFaceWithoutTextureCoordinates) {
+  write("cloth.toml", kMaterial);
+  const auto obj = write("meshes/strip.obj", with_line(kStripObj, 16, "f 1 3 4"));
+  const auto path = write("scenes/strip.toml", obj_scene(""));
+  expect_config_error([&] { load_scene(path); }, {obj + at_line(16), "face", "no texture coordinates"});
+}
+
+TEST_F(SceneFileTest, ObjMissingFile) {
+  write("cloth.toml", kMaterial);
+  const auto path = write("scenes/strip.toml", obj_scene(""));
+  expect_config_error([&] { load_scene(path); }, {(dir_ / "meshes/strip.obj").string(), "cannot open"});
+}
+
+}  // namespace
