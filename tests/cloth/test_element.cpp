@@ -46,6 +46,22 @@ Mat9 blocks(const Mat3 (&b)[3][3]) {
 
 double rel(double err, double ref) { return err / std::max(ref, 1e-300); }
 
+// Central differences of g over the 9 corner coordinates p (positions or velocities): column
+// 3k + c is -(g(p + h e) - g(p - h e)) / 2h, e the unit step of corner k along axis c.
+template <int Rows, class G>
+Eigen::Matrix<double, Rows, 9> minus_central_differences(const Vec3 (&p)[3], G&& g) {
+  const double h = 1e-7;
+  Eigen::Matrix<double, Rows, 9> d;
+  for (int k = 0; k < 3; ++k)
+    for (int c = 0; c < 3; ++c) {
+      Vec3 pp[3] = {p[0], p[1], p[2]}, pm[3] = {p[0], p[1], p[2]};
+      pp[k][c] += h;
+      pm[k][c] -= h;
+      d.col(3 * k + c) = -(g(pp) - g(pm)) / (2 * h);
+    }
+  return d;
+}
+
 }  // namespace
 
 class ElementFD : public ::testing::TestWithParam<int> {};
@@ -57,16 +73,9 @@ TEST_P(ElementFD, ForcesAreNegativeEnergyGradient) {
   for (int trial = 0; trial < 20; ++trial) {
     auto t = test::random_triangle(rng, GetParam());
     const Vec9 f = forces(eval(t.rest, m, t.x, nullptr, cloth::JacobianMode::Exact));
-    Vec9 fd;
-    const double h = 1e-7;
-    for (int k = 0; k < 3; ++k)
-      for (int c = 0; c < 3; ++c) {
-        Vec3 xp[3] = {t.x[0], t.x[1], t.x[2]}, xm[3] = {t.x[0], t.x[1], t.x[2]};
-        xp[k][c] += h;
-        xm[k][c] -= h;
-        fd[3 * k + c] = -(cloth::element_energy(t.rest, m, xp[0], xp[1], xp[2]) -
-                          cloth::element_energy(t.rest, m, xm[0], xm[1], xm[2])) / (2 * h);
-      }
+    const Vec9 fd = minus_central_differences<1>(t.x, [&](const Vec3 (&x)[3]) {
+                      return Eigen::Matrix<double, 1, 1>(cloth::element_energy(t.rest, m, x[0], x[1], x[2]));
+                    }).transpose();
     EXPECT_LE(rel((f - fd).norm(), f.norm()), 1e-6) << "trial " << trial;
     // Internal forces sum to zero (translation invariance).
     EXPECT_LE((f.segment<3>(0) + f.segment<3>(3) + f.segment<3>(6)).norm(), 1e-12 * f.norm());
@@ -80,17 +89,8 @@ TEST_P(ElementFD, StiffnessMatchesForceDifferences) {
   for (int trial = 0; trial < 20; ++trial) {
     auto t = test::random_triangle(rng, GetParam());
     const Mat9 H = blocks(eval(t.rest, m, t.x, nullptr, cloth::JacobianMode::Exact).H);
-    Mat9 fd;
-    const double h = 1e-7;
-    for (int k = 0; k < 3; ++k)
-      for (int c = 0; c < 3; ++c) {
-        Vec3 xp[3] = {t.x[0], t.x[1], t.x[2]}, xm[3] = {t.x[0], t.x[1], t.x[2]};
-        xp[k][c] += h;
-        xm[k][c] -= h;
-        fd.col(3 * k + c) = -(forces(eval(t.rest, m, xp, nullptr, cloth::JacobianMode::Exact)) -
-                              forces(eval(t.rest, m, xm, nullptr, cloth::JacobianMode::Exact))) /
-                            (2 * h);
-      }
+    const Mat9 fd = minus_central_differences<9>(
+        t.x, [&](const Vec3 (&x)[3]) { return forces(eval(t.rest, m, x, nullptr, cloth::JacobianMode::Exact)); });
     EXPECT_LE(rel((H - fd).norm(), H.norm()), 1e-6) << "trial " << trial;
     EXPECT_LE((H - H.transpose()).norm(), 1e-12 * H.norm()) << "stiffness is not symmetric";
   }
@@ -104,21 +104,10 @@ TEST_P(ElementFD, ViscousJacobiansMatchForceDifferences) {
     auto t = test::random_triangle(rng, GetParam());
     const auto ev = eval(t.rest, m, t.x, t.v, cloth::JacobianMode::Exact, /*nonsym=*/true);
     const Mat9 C = blocks(ev.C), H = blocks(ev.H);
-    Mat9 fdv, fdx;
-    const double h = 1e-7;
-    for (int k = 0; k < 3; ++k)
-      for (int c = 0; c < 3; ++c) {
-        Vec3 vp[3] = {t.v[0], t.v[1], t.v[2]}, vm[3] = {t.v[0], t.v[1], t.v[2]};
-        vp[k][c] += h;
-        vm[k][c] -= h;
-        fdv.col(3 * k + c) = -(forces(eval(t.rest, m, t.x, vp, cloth::JacobianMode::Exact)) -
-                               forces(eval(t.rest, m, t.x, vm, cloth::JacobianMode::Exact))) / (2 * h);
-        Vec3 xp[3] = {t.x[0], t.x[1], t.x[2]}, xm[3] = {t.x[0], t.x[1], t.x[2]};
-        xp[k][c] += h;
-        xm[k][c] -= h;
-        fdx.col(3 * k + c) = -(forces(eval(t.rest, m, xp, t.v, cloth::JacobianMode::Exact)) -
-                               forces(eval(t.rest, m, xm, t.v, cloth::JacobianMode::Exact))) / (2 * h);
-      }
+    const Mat9 fdv = minus_central_differences<9>(
+        t.v, [&](const Vec3 (&v)[3]) { return forces(eval(t.rest, m, t.x, v, cloth::JacobianMode::Exact)); });
+    const Mat9 fdx = minus_central_differences<9>(
+        t.x, [&](const Vec3 (&x)[3]) { return forces(eval(t.rest, m, x, t.v, cloth::JacobianMode::Exact)); });
     EXPECT_LE(rel((C - fdv).norm(), C.norm()), 1e-6) << "trial " << trial;
     EXPECT_LE(rel((H - fdx).norm(), H.norm()), 1e-6) << "trial " << trial;
     EXPECT_LE((C - C.transpose()).norm(), 1e-12 * C.norm());

@@ -127,9 +127,7 @@ TEST(Integrator, ConservesMomentumOfFreeCloth) {
 
 TEST(Integrator, PinnedVerticesMoveOnlyWithTheirVelocity) {
   const auto m = vertical_sheet(test::denim());
-  cloth::IntegratorConfig cfg;
-  cfg.dt = 0.002;
-  cloth::Integrator integ(m, cfg, cloth::make_pcg_solver({}));
+  cloth::Integrator integ(m, {.dt = 0.002}, cloth::make_pcg_solver({}));
   cloth::ClothState s = cloth::rest_state(m);
   const Vec3 pull(0.0, 0.0, 0.01);  // m/s, upwards
   for (int i = 0; i < m.num_vertices(); ++i)
@@ -194,9 +192,7 @@ TEST(IntegratorRecovery, NanStateIsRestoredAndCounted) {
 
 TEST(IntegratorRecovery, NanForceIsRejectedRetriedAndRestored) {
   const auto m = vertical_sheet(test::denim());
-  cloth::IntegratorConfig cfg;
-  cfg.max_halvings = 2;
-  cloth::Integrator integ(m, cfg, cloth::make_pcg_solver({}));
+  cloth::Integrator integ(m, {.max_halvings = 2}, cloth::make_pcg_solver({}));
   cloth::ClothState s = cloth::rest_state(m);
   integ.external_forces()[30] = Vec3(0, std::nan(""), 0);
   EXPECT_EQ(integ.step(s), cloth::StepOutcome::Restored);
@@ -409,7 +405,9 @@ TEST(Integrator, ProxyResponseIsTheStepsDerivativeInTheTargets) {
     }
     cloth::ClothState s = s0;
     EXPECT_EQ(integ.step(s), cloth::StepOutcome::Accepted);
-    if (M) EXPECT_TRUE(integ.proxy_response(*M));
+    if (M) {
+      EXPECT_TRUE(integ.proxy_response(*M));
+    }
     return std::array<Vec3, 2>{integ.proxies()[0].x, integ.proxies()[1].x};
   };
   std::vector<cloth::Mat3> R;

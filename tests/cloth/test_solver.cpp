@@ -38,6 +38,26 @@ cloth::ClothState random_state(const cloth::ClothModel& m, std::mt19937& rng, do
   return s;
 }
 
+// The system of eq. 9 (Spd) of a step h from a random state of the sheet, a random right-hand
+// side, and CHOLMOD's solution of it: what PCG is checked against.
+struct Reference {
+  cloth::SymCsr A;
+  std::vector<double> b, x;
+};
+
+Reference cholmod_reference(const Sheet& sheet, std::mt19937& rng, double h) {
+  const auto s = random_state(sheet.model, rng, 0.005);
+  cloth::Integrator integ(sheet.model, cloth::IntegratorConfig{}, cloth::make_cholmod_solver());
+  Reference ref{integ.system_matrix(s, h, cloth::JacobianMode::Spd), {}, {}};
+  ref.b.resize(ref.A.n);
+  for (auto& v : ref.b) v = std::uniform_real_distribution<double>(-1, 1)(rng);
+  ref.x.assign(ref.A.n, 0.0);
+  auto chol = cloth::make_cholmod_solver();
+  chol->analyze(ref.A);
+  EXPECT_EQ(chol->solve(ref.A, ref.b.data(), ref.x.data()), cloth::SolveStatus::Ok);
+  return ref;
+}
+
 }  // namespace
 
 TEST(Solver, SystemMatrixIsSpdOnRandomStates) {
@@ -76,19 +96,9 @@ TEST(Solver, SystemMatrixIsSpdOnRandomStates) {
 TEST(Solver, PcgMatchesCholmod) {
   Sheet sheet;
   std::mt19937 rng(5);
-  const auto s = random_state(sheet.model, rng, 0.005);
-  cloth::IntegratorConfig cfg;
-  cfg.dt = 0.01;
-  cloth::Integrator integ(sheet.model, cfg, cloth::make_cholmod_solver());
-  const cloth::SymCsr A = integ.system_matrix(s, cfg.dt, cloth::JacobianMode::Spd);
-  std::vector<double> b(A.n), x1(A.n, 0.0), x2(A.n, 0.0), r(A.n);
-  for (auto& v : b) v = std::uniform_real_distribution<double>(-1, 1)(rng);
-  auto chol = cloth::make_cholmod_solver();
-  chol->analyze(A);
-  ASSERT_EQ(chol->solve(A, b.data(), x1.data()), cloth::SolveStatus::Ok);
-  cloth::PcgOptions po;
-  po.tolerance = 1e-10;
-  auto pcg = cloth::make_pcg_solver(po);
+  const auto [A, b, x1] = cholmod_reference(sheet, rng, 0.01);
+  std::vector<double> x2(A.n, 0.0), r(A.n);
+  auto pcg = cloth::make_pcg_solver({.tolerance = 1e-10});
   pcg->analyze(A);
   ASSERT_EQ(pcg->solve(A, b.data(), x2.data()), cloth::SolveStatus::Ok);
   EXPECT_GT(pcg->iterations(), 1);
@@ -197,19 +207,9 @@ TEST(Solver, PcgReportsNonConvergenceAndIndefiniteness) {
 TEST(Solver, PcgWithFloatMatrixMeetsToleranceOnTheDoubleMatrix) {
   Sheet sheet;
   std::mt19937 rng(11);
-  const auto s = random_state(sheet.model, rng, 0.005);
-  cloth::IntegratorConfig cfg;
-  cloth::Integrator integ(sheet.model, cfg, cloth::make_cholmod_solver());
-  const cloth::SymCsr A = integ.system_matrix(s, 0.005, cloth::JacobianMode::Spd);
-  std::vector<double> b(A.n), x1(A.n, 0.0), x2(A.n, 0.0), r(A.n);
-  for (auto& v : b) v = std::uniform_real_distribution<double>(-1, 1)(rng);
-  auto chol = cloth::make_cholmod_solver();
-  chol->analyze(A);
-  ASSERT_EQ(chol->solve(A, b.data(), x1.data()), cloth::SolveStatus::Ok);
-  cloth::PcgOptions po;
-  po.tolerance = 1e-4;
-  po.single_precision_matrix = true;
-  auto pcg = cloth::make_pcg_solver(po);
+  const auto [A, b, x1] = cholmod_reference(sheet, rng, 0.005);
+  std::vector<double> x2(A.n, 0.0), r(A.n);
+  auto pcg = cloth::make_pcg_solver({.tolerance = 1e-4, .single_precision_matrix = true});
   pcg->analyze(A);
   ASSERT_EQ(pcg->solve(A, b.data(), x2.data()), cloth::SolveStatus::Ok);
   EXPECT_GT(pcg->iterations(), 1);

@@ -356,20 +356,21 @@ TEST(UdpFakeRig, FaultInjectionMatchesTheCounters) {
   // the counters can only be lower.
   const std::uint64_t accounted = c.samples + c.dropped_total();
   EXPECT_LE(sent - accounted, sent / 100) << "lost in the kernel";
-  if (accounted == sent) {
-    EXPECT_EQ(c.samples, valid - reordered);
-    EXPECT_EQ(c.dropped_reordered, reordered);
-    EXPECT_EQ(c.dropped_duplicate, duplicated);
-    EXPECT_EQ(c.dropped_malformed, malformed);
-    EXPECT_EQ(c.dropped_version, version);
-    EXPECT_EQ(c.dropped_out_of_range, range);
-  } else {
-    EXPECT_LE(c.samples, valid - reordered);
-    EXPECT_LE(c.dropped_reordered, reordered);
-    EXPECT_LE(c.dropped_duplicate, duplicated);
-    EXPECT_LE(c.dropped_malformed, malformed);
-    EXPECT_LE(c.dropped_version, version);
-    EXPECT_LE(c.dropped_out_of_range, range);
+  const struct {
+    const char* counter;
+    std::uint64_t counted, injected;
+  } counts[] = {{"samples", c.samples, valid - reordered},
+                {"dropped_reordered", c.dropped_reordered, reordered},
+                {"dropped_duplicate", c.dropped_duplicate, duplicated},
+                {"dropped_malformed", c.dropped_malformed, malformed},
+                {"dropped_version", c.dropped_version, version},
+                {"dropped_out_of_range", c.dropped_out_of_range, range}};
+  for (const auto& n : counts) {
+    if (accounted == sent) {
+      EXPECT_EQ(n.counted, n.injected) << n.counter;
+    } else {
+      EXPECT_LE(n.counted, n.injected) << n.counter;
+    }
   }
   EXPECT_EQ(run.allocations, 0u);
 

@@ -23,6 +23,7 @@ from pathlib import Path
 import pytest
 
 from buildpaths import build_dir, program
+from not_lcm_logs import NOT_LCM_LOGS, not_lcm_log
 from test_transport import Server, connect, free_port
 
 lcm = pytest.importorskip("lcm")
@@ -199,16 +200,9 @@ def test_record_to_a_folder(tmp_path):
                       f"{tmp_path}: is a folder")
 
 
-@pytest.mark.parametrize("content, words", [
-    (None, "cannot open as an LCM log (no such file)"),
-    (b"", "empty, not an LCM log"),
-    (b"time,finger,x,y,z\n0.5,0,0,0,0\n", "not an LCM log"),
-    (bytes(range(256)) * 8, "not an LCM log"),
-])
+@NOT_LCM_LOGS
 def test_replay_of_a_missing_or_non_lcm_log(tmp_path, content, words):
-    log = tmp_path / "in.lcm"
-    if content is not None:
-        log.write_bytes(content)
+    log = not_lcm_log(tmp_path, content)
     assert_user_error(tool("hapticloth-replay", log, "--endpoint", unreachable_endpoint()),
                       f"{log}: {words}")
 

@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from not_lcm_logs import NOT_LCM_LOGS, not_lcm_log
+
 lcm = pytest.importorskip("lcm")
 
 from hapticloth import plot  # noqa: E402
@@ -195,16 +197,9 @@ def assert_user_error(r, *named):
         assert str(n) in r.stderr, (n, r.stderr)
 
 
-@pytest.mark.parametrize("content, words", [
-    (None, "cannot open as an LCM log (no such file)"),
-    (b"", "empty, not an LCM log"),
-    (b"time,finger,x,y,z\n0.5,0,0,0,0\n", "not an LCM log"),
-    (bytes(range(256)) * 8, "not an LCM log"),
-])
+@NOT_LCM_LOGS
 def test_missing_or_non_lcm_log(tmp_path, content, words):
-    log = tmp_path / "in.lcm"
-    if content is not None:
-        log.write_bytes(content)
+    log = not_lcm_log(tmp_path, content)
     out = tmp_path / "x.png"
     assert_user_error(plot_tool(log, "-o", out), f"hapticloth-plot: {log}: {words}")
     assert not out.exists()

@@ -58,6 +58,36 @@ fn str_arg<'a>(p: *const c_char, what: &str) -> Option<&'a str> {
     }
 }
 
+/// The session of a handle; None (and the error set) for a null handle.
+fn session_arg<'a>(s: *const HzSession) -> Option<&'a Session> {
+    if s.is_null() {
+        set_error("session: null");
+        return None;
+    }
+    // SAFETY: a live session handle.
+    Some(unsafe { &(*s).session })
+}
+
+/// A copy of the `len` bytes at `data` (not null when `len` > 0: the caller checked).
+fn bytes_arg(data: *const u8, len: usize) -> Vec<u8> {
+    if len == 0 {
+        return Vec::new();
+    }
+    // SAFETY: `data` points to `len` readable bytes for the duration of the call.
+    unsafe { std::slice::from_raw_parts(data, len) }.to_vec()
+}
+
+/// 0 for Ok; for an error, -1 and the message "`what`: error" for hz_last_error.
+fn status(r: zenoh::Result<()>, what: &str) -> i32 {
+    match r {
+        Ok(()) => 0,
+        Err(e) => {
+            set_error(format!("{what}: {e}"));
+            -1
+        }
+    }
+}
+
 // --- session ------------------------------------------------------------------------------
 
 pub struct HzSession {
@@ -118,13 +148,8 @@ pub struct HzPublisher {
 /// hz_publisher_matching). Puts are dropped, never blocked, under congestion. NULL on error.
 #[no_mangle]
 pub extern "C" fn hz_declare_publisher(s: *const HzSession, key: *const c_char) -> *mut HzPublisher {
-    if s.is_null() {
-        set_error("session: null");
-        return std::ptr::null_mut();
-    }
+    let Some(session) = session_arg(s) else { return std::ptr::null_mut() };
     let Some(key) = str_arg(key, "key expression") else { return std::ptr::null_mut() };
-    // SAFETY: a live session handle.
-    let session = unsafe { &(*s).session };
     let publisher = match session.declare_publisher(key.to_owned()).wait() {
         Ok(p) => p,
         Err(e) => {
@@ -170,16 +195,8 @@ pub extern "C" fn hz_put(p: *const HzPublisher, data: *const u8, len: usize) -> 
         set_error("put: null");
         return -1;
     }
-    // SAFETY: `data` points to `len` readable bytes for the duration of the call.
-    let bytes = if len == 0 { Vec::new() } else { unsafe { std::slice::from_raw_parts(data, len) }.to_vec() };
     // SAFETY: a live publisher handle.
-    match unsafe { &(*p).publisher }.put(bytes).wait() {
-        Ok(()) => 0,
-        Err(e) => {
-            set_error(format!("put: {e}"));
-            -1
-        }
-    }
+    status(unsafe { &(*p).publisher }.put(bytes_arg(data, len)).wait(), "put")
 }
 
 #[no_mangle]
@@ -238,13 +255,8 @@ pub extern "C" fn hz_declare_subscriber(
     cb: HzSampleCallback,
     ctx: *mut c_void,
 ) -> *mut HzSubscriber {
-    if s.is_null() {
-        set_error("session: null");
-        return std::ptr::null_mut();
-    }
+    let Some(session) = session_arg(s) else { return std::ptr::null_mut() };
     let Some(key) = str_arg(key, "key expression") else { return std::ptr::null_mut() };
-    // SAFETY: a live session handle.
-    let session = unsafe { &(*s).session };
     let ctx = Ctx(ctx);
     let gate = Gate::new();
     let g = gate.clone();
@@ -305,13 +317,8 @@ pub extern "C" fn hz_declare_queryable(
     cb: HzQueryCallback,
     ctx: *mut c_void,
 ) -> *mut HzQueryable {
-    if s.is_null() {
-        set_error("session: null");
-        return std::ptr::null_mut();
-    }
+    let Some(session) = session_arg(s) else { return std::ptr::null_mut() };
     let Some(key) = str_arg(key, "key expression") else { return std::ptr::null_mut() };
-    // SAFETY: a live session handle.
-    let session = unsafe { &(*s).session };
     let ctx = Ctx(ctx);
     let reply_key = key.to_owned();
     let gate = Gate::new();
@@ -344,16 +351,9 @@ pub extern "C" fn hz_query_reply(query: *const HzQuery, data: *const u8, len: us
         set_error("reply: null");
         return -1;
     }
-    // SAFETY: a live query (inside its callback) and `len` readable bytes.
+    // SAFETY: a live query (inside its callback).
     let q = unsafe { &*query };
-    let bytes = if len == 0 { Vec::new() } else { unsafe { std::slice::from_raw_parts(data, len) }.to_vec() };
-    match q.query.reply(q.reply_key.to_owned(), bytes).wait() {
-        Ok(()) => 0,
-        Err(e) => {
-            set_error(format!("reply: {e}"));
-            -1
-        }
-    }
+    status(q.query.reply(q.reply_key.to_owned(), bytes_arg(data, len)).wait(), "reply")
 }
 
 #[no_mangle]
@@ -378,13 +378,8 @@ pub extern "C" fn hz_get(
     cb: HzSampleCallback,
     ctx: *mut c_void,
 ) -> i32 {
-    if s.is_null() {
-        set_error("session: null");
-        return -1;
-    }
+    let Some(session) = session_arg(s) else { return -1 };
     let Some(sel) = str_arg(selector, "selector") else { return -1 };
-    // SAFETY: a live session handle.
-    let session = unsafe { &(*s).session };
     let replies = match session
         .get(sel.to_owned())
         .timeout(std::time::Duration::from_millis(timeout_ms))
