@@ -149,7 +149,10 @@ json pinch_step(const app::Scene& scene, double seconds) {
   // Where a step's time goes: the solver's iterations (summed over the re-solves) and the
   // integrator's share of the step (the rest is the contact's sampling and FCL).
   haptics::Histogram iterations, integrator_us;
-  std::uint64_t solves = 0, steps = 0;
+  std::uint64_t solves = 0, steps = 0, revisions = 0;
+  // Steps by how many solves they took (1, 2, 3, 4 or more), in the squeeze (the first 0.1 s)
+  // and in the hold after it: the step's tail comes from the steps solved more than once.
+  std::array<std::array<long, 4>, 2> by_solves{};
   rig.session->run_stepped(seconds, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker& w) {
     ++ticks;
     both += h.last_report().finger[0].in_contact && h.last_report().finger[1].in_contact;
@@ -158,6 +161,9 @@ json pinch_step(const app::Scene& scene, double seconds) {
     const cloth::StepTiming& t = w.integrator().last_timing();
     iterations.add(t.iterations);
     integrator_us.add(1e3 * t.total_ms);
+    const std::uint64_t rev = w.integrator().events().contact_revisions;
+    by_solves[ticks > 100][std::min<std::uint64_t>(rev - revisions, 3)]++;
+    revisions = rev;
   });
   solves = steps + rig.session->report().contact_revisions;
   const haptics::SessionReport rep = rig.session->report();
@@ -173,6 +179,7 @@ json pinch_step(const app::Scene& scene, double seconds) {
           {"solver_iterations_per_step", {{"mean", iterations.mean()}, {"p99", iterations.quantile(0.99)}, {"max", iterations.max()}}},
           {"solves_per_step", static_cast<double>(solves) / std::max<std::uint64_t>(1, steps)},
           {"contact_revisions", rep.contact_revisions},
+          {"steps_by_solves", {{"squeeze", by_solves[0]}, {"hold", by_solves[1]}}},
           {"max_penetration_mm", rep.max_penetration * 1e3}};
 }
 
