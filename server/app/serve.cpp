@@ -9,12 +9,15 @@
 #include <cmath>
 #include <iomanip>
 #include <iostream>
+#include <optional>
 #include <sstream>
+#include <thread>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "hal/handle.hpp"
+#include "hal/platform_timer.hpp"
 #include "haptics/session.hpp"
 #include "registry.hpp"
 #include "remote/command_sink.hpp"
@@ -78,27 +81,56 @@ struct DropReporter : haptics::SessionObserver {
   }
 };
 
-// What serve() runs: the settled cloth, the session's settings and the stage lines.
+// What serve() runs: the settled cloth, the session's settings and the stage lines; for a
+// real-time session, the platform's timer measured while the cloth settled.
 struct Plan {
   cloth::ClothState state;
   haptics::SessionConfig session;
   std::vector<std::string> stages;
+  std::optional<devices::TimerFigures> platform;
 };
 
-// Settles the scene for its preroll as fast as possible, measuring the global step; chooses the
-// coupling from it (scene.integrator.dt may be shortened to the haptic period) and says why.
-Plan plan(Scene& scene, const cloth::ClothModel& model, const devices::DeviceHandle& dev,
-          const std::atomic<bool>* stop) {
-  Plan p{cloth::rest_state(model), scene.haptics, {}};
+// The platform timer beside a real-time session: taken while the preroll runs on the other core
+// (the load the haptic thread then runs beside: the cloth's steps), at the haptic thread's
+// scheduling, for at least this many ticks. Not during the session: a second SCHED_FIFO thread
+// waking every millisecond would disturb the loop it is the reference for.
+constexpr long kPlatformTicksMin = 1000;
+constexpr long kPlatformTicksMax = 600000;  // 10 min at 1 kHz: a preroll longer than that stops it
+
+// Steps the cloth for the scene's preroll as fast as possible; returns each step's time, ms.
+std::vector<double> settle(const Scene& scene, const cloth::ClothModel& model, cloth::ClothState& state,
+                           const std::atomic<bool>* stop) {
   std::vector<double> step_ms;
-  {
-    auto integ = make_integrator(scene, model);
-    const long n = std::max(20L, std::lround(scene.preroll / scene.integrator.dt));
-    for (long k = 0; k < n && !(stop && stop->load()); ++k) {
-      integ->step(p.state);
-      step_ms.push_back(integ->last_timing().total_ms);
-    }
-    p.state.time = 0.0;
+  auto integ = make_integrator(scene, model);
+  const long n = std::max(20L, std::lround(scene.preroll / scene.integrator.dt));
+  for (long k = 0; k < n && !(stop && stop->load()); ++k) {
+    integ->step(state);
+    step_ms.push_back(integ->last_timing().total_ms);
+  }
+  state.time = 0.0;
+  return step_ms;
+}
+
+// Settles the scene for its preroll as fast as possible, measuring the global step (and, for a
+// real-time session, the platform's timer meanwhile); chooses the coupling from the step
+// (scene.integrator.dt may be shortened to the haptic period) and says why.
+Plan plan(Scene& scene, const cloth::ClothModel& model, const devices::DeviceHandle& dev,
+          bool realtime, const std::atomic<bool>* stop) {
+  Plan p{cloth::rest_state(model), scene.haptics, {}, std::nullopt};
+  std::vector<double> step_ms;
+  if (realtime) {
+    std::atomic<bool> settled{false};
+    devices::TimerFigures timer;
+    std::thread t([&] {
+      timer = devices::measure_timer(kPlatformTicksMax, 1.0 / scene.haptics.haptic_rate, 80, &settled,
+                                     kPlatformTicksMin, stop);
+    });
+    step_ms = settle(scene, model, p.state, stop);
+    settled = true;
+    t.join();
+    p.platform = timer;
+  } else {
+    step_ms = settle(scene, model, p.state, stop);
   }
   std::sort(step_ms.begin(), step_ms.end());
   const double median_ms = step_ms[step_ms.size() / 2];
@@ -191,6 +223,15 @@ std::string run(const Scene& scene, const ServeOptions& opt, const cloth::ClothM
   return os.str();
 }
 
+// The platform's own timer, in the units and order of the loop's period error above it.
+std::string platform_line(const devices::TimerFigures& t) {
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(1) << "platform timer   p50 " << t.p50_us << ", p99 "
+     << t.p99_us << ", p99.9 " << t.p999_us << ", max " << t.max_us << " us; " << t.over_1ms
+     << " wake-ups over 1 ms in " << t.ticks << " ticks (during the preroll, " << t.scheduling << ")\n";
+  return os.str();
+}
+
 // The summary: the session's report with the device's, the gate's, the cloth's and the
 // transport's counters, as text or one JSON object.
 void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHandle& dev,
@@ -218,10 +259,15 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
     j["integrator_events"] = ev.total();
     j["trajectory_commands"] = {{"accepted", hs.commands_accepted}, {"rejected", hs.commands_rejected}};
     j["stopped"] = stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(stopped);
+    if (p.platform) {
+      j["platform_timer"] = p.platform->to_json();
+      j["period_error_p99_excess_us"] = r.haptic.period_error_us.quantile(0.99) - p.platform->p99_us;
+    }
     out << j.dump() << "\n";
     return;
   }
   out << r.to_text();
+  if (p.platform) out << platform_line(*p.platform);
   out << "device counters  samples " << dc.samples << ", dropped " << dc.dropped_total()
       << " (malformed " << dc.dropped_malformed << ", version " << dc.dropped_version
       << ", duplicate " << dc.dropped_duplicate << ", reordered " << dc.dropped_reordered
@@ -261,7 +307,7 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   // The device first (a UDP rig can start streaming while the cloth settles).
   devices::DeviceHandle dev(opt.make_device ? opt.make_device(scene.device) : devices::make_device(scene.device));
   if (const std::string e = dev.configure(); !e.empty()) throw ConfigError("device: " + e);
-  const Plan p = plan(scene, model, dev, opt.stop);
+  const Plan p = plan(scene, model, dev, opt.realtime, opt.stop);
   haptics::Session session(model, scene.integrator, cloth::make_solver(scene.solver, scene.pcg),
                            p.state, dev, p.session);
   session.set_stop_flag(opt.stop);

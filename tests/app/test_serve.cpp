@@ -1,11 +1,14 @@
 // Running a scene with a device (server/app/serve): a device that fails during the session
 // ends it with exit status 1 and says so; the same session with a healthy device ends with 0.
+// A real-time session reports the platform's timer beside its own period error.
 #include <gtest/gtest.h>
 
 #include <limits>
 #include <memory>
 #include <sstream>
 #include <string>
+
+#include <nlohmann/json.hpp>
 
 #include "app/serve.hpp"
 #include "cloth/mesh.hpp"
@@ -68,10 +71,11 @@ struct Served {
   std::string out, err;
 };
 
-// serve() on a stepped clock, without transports, with a FailingDevice.
-Served serve_with(double fail_after) {
+// serve() without transports, with a FailingDevice, on a stepped clock (or in real time).
+Served serve_with(double fail_after, bool realtime = false, bool json = false) {
   app::ServeOptions opt;
-  opt.realtime = false;
+  opt.realtime = realtime;
+  opt.json = json;
   opt.transport.zenoh = false;
   opt.transport.lcm_log.clear();
   opt.make_device = [fail_after](const devices::DeviceOptions& o) {
@@ -95,6 +99,36 @@ TEST(Serve, AHealthyDeviceEndsTheSessionWithExit0) {
   const Served s = serve_with(std::numeric_limits<double>::infinity());
   EXPECT_EQ(s.status, 0) << s.out << s.err;
   EXPECT_EQ(s.err.find("failed"), std::string::npos) << s.err;
+}
+
+// The platform timer is measured while the cloth settles, for at least 1000 ticks (1 s at
+// 1 kHz, longer than this scene's preroll), and printed after the loop's own figures.
+TEST(Serve, ARealTimeSessionReportsThePlatformTimerBesideItsOwn) {
+  const Served text = serve_with(std::numeric_limits<double>::infinity(), true);
+  ASSERT_EQ(text.status, 0) << text.out << text.err;
+  const size_t period = text.out.find("period error"), platform = text.out.find("platform timer   p50 ");
+  ASSERT_NE(platform, std::string::npos) << text.out;
+  EXPECT_LT(period, platform) << text.out;
+  EXPECT_NE(text.out.find("during the preroll"), std::string::npos) << text.out;
+
+  const Served js = serve_with(std::numeric_limits<double>::infinity(), true, true);
+  ASSERT_EQ(js.status, 0) << js.err;
+  const auto j = nlohmann::json::parse(js.out);
+  ASSERT_TRUE(j.contains("platform_timer")) << js.out;
+  const auto& t = j["platform_timer"];
+  EXPECT_GE(t["ticks"].get<long>(), 1000);
+  EXPECT_LT(t["ticks"].get<long>(), 60000) << "stopped once the preroll ended";
+  EXPECT_GE(t["p99_us"].get<double>(), t["p50_us"].get<double>());
+  EXPECT_GE(t["max_us"].get<double>(), t["p99_us"].get<double>());
+  EXPECT_GT(t["p50_us"].get<double>(), 0.0) << "a sleeping thread never wakes before its deadline";
+  EXPECT_NEAR(j["period_error_p99_excess_us"].get<double>(),
+              j["period_error_us"]["p99"].get<double>() - t["p99_us"].get<double>(), 1e-9);
+}
+
+TEST(Serve, ASteppedSessionHasNoPlatformTimer) {
+  const Served js = serve_with(std::numeric_limits<double>::infinity(), false, true);
+  ASSERT_EQ(js.status, 0) << js.err;
+  EXPECT_FALSE(nlohmann::json::parse(js.out).contains("platform_timer")) << js.out;
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-"""Tests of the platform-timer benchmark (tools/bench/platform_timer.cpp: `hapticloth-bench
+"""Tests of the platform-timer benchmark (devices/hal/platform_timer.cpp: `hapticloth-bench
 timer`) against cyclictest of Debian's rt-tests, which measures the same thing: the wake-up
 latency of a SCHED_FIFO 80 thread sleeping to absolute 1 kHz deadlines with
 /dev/cpu_dma_latency held at 0. And that `hapticloth-bench udp` prints that figure beside its

@@ -26,7 +26,7 @@
 #include "cli_checks.hpp"
 
 #include "accuracy.hpp"
-#include "platform_timer.hpp"
+#include "hal/platform_timer.hpp"
 #include "app/run_summary.hpp"
 #include "app/scene_file.hpp"
 #include "app/serve.hpp"
@@ -236,7 +236,7 @@ int main(int argc, char** argv) {
       // The session report, and beside it the platform's timer over as many ticks, measured
       // right after in the same invocation, with the loop's excess over it.
       nlohmann::json j = nlohmann::json::parse(out.str());
-      const bench::TimerFigures platform = bench::measure_timer(std::lround(haptic_duration * 1000.0));
+      const devices::TimerFigures platform = devices::measure_timer(std::lround(haptic_duration * 1000.0));
       j["platform_timer"] = platform.to_json();
       const double loop_p99 = j["period_error_us"]["p99"].get<double>();
       j["period_error_p99_excess_us"] = loop_p99 - platform.p99_us;
@@ -244,7 +244,7 @@ int main(int argc, char** argv) {
       return rc;
     }
     if (*timer) {
-      std::cout << bench::measure_timer(timer_ticks, 1e-3, timer_priority).to_json().dump(json ? -1 : 1) << "\n";
+      std::cout << devices::measure_timer(timer_ticks, 1e-3, timer_priority).to_json().dump(json ? -1 : 1) << "\n";
       return 0;
     }
     app::Scene scene = app::load_scene(scene_path);

@@ -40,7 +40,7 @@
 #include <vector>
 
 #include "cli_checks.hpp"
-#include "platform_timer.hpp"
+#include "hal/platform_timer.hpp"
 
 #include "hal/cpu_latency.hpp"
 #include "udp/udp_device.hpp"
@@ -250,7 +250,7 @@ int main(int argc, char** argv) {
       100.0 * static_cast<double>(packets - static_cast<long>(rtt.size())) /
       static_cast<double>(std::max(packets, 1L));
   // The platform's own timer right after, over as many wake-ups, in this invocation.
-  const hapticloth::bench::TimerFigures platform = hapticloth::bench::measure_timer(packets, 1e-9 * period);
+  const hapticloth::devices::TimerFigures platform = hapticloth::devices::measure_timer(packets, 1e-9 * period);
   const Percentiles r = percentiles(rtt);
   std::printf(
       "{\"rtt_us\": %s, \"turnaround_us\": %s, \"wake_late_us\": %s, \"loss_pct\": %.3f, "

@@ -2,16 +2,18 @@
 // thread at the haptic thread's scheduling (SCHED_FIFO 80 when permitted, timer slack 1 ns,
 // /dev/cpu_dma_latency held at 0 as cyclictest and the real-time haptic loop hold it) sleeps to absolute 1 kHz deadlines with clock_nanosleep and records how late it woke. No
 // spin, no work: what is left is the kernel's wake-up latency, the floor under every
-// real-time figure of this project. `hapticloth-bench timer` prints it; `haptic` prints it
-// beside the loop's own figures, measured in the same invocation.
+// real-time figure of this project. `hapticloth-bench timer` prints it; `haptic` and `udp` print
+// it beside their own figures, measured in the same invocation; the server measures it while
+// a real-time session's cloth settles (its preroll) and prints it beside the loop's.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
-namespace hapticloth::bench {
+namespace hapticloth::devices {
 
 struct TimerFigures {
   long ticks = 0;
@@ -24,7 +26,11 @@ struct TimerFigures {
 
 /// Wake-up latency of `ticks` sleeps to absolute deadlines `period` s apart, at SCHED_FIFO
 /// `priority` if permitted. A wake-up later than the next deadline skips the deadlines it
-/// missed (as cyclictest does), so one late wake-up counts once.
-TimerFigures measure_timer(long ticks, double period = 1e-3, int priority = 80);
+/// missed (as cyclictest does), so one late wake-up counts once. With `until`, it stops early
+/// once `*until` is true and at least `min_ticks` were taken; with `abort`, as soon as
+/// `*abort` is true.
+TimerFigures measure_timer(long ticks, double period = 1e-3, int priority = 80,
+                           const std::atomic<bool>* until = nullptr, long min_ticks = 0,
+                           const std::atomic<bool>* abort = nullptr);
 
-}  // namespace hapticloth::bench
+}  // namespace hapticloth::devices

@@ -1,4 +1,4 @@
-#include "platform_timer.hpp"
+#include "hal/platform_timer.hpp"
 
 #include <pthread.h>
 #include <sched.h>
@@ -14,11 +14,9 @@
 #include "hal/cpu_latency.hpp"
 #include "hal/mono_clock.hpp"
 
-namespace hapticloth::bench {
+namespace hapticloth::devices {
 
 namespace {
-using devices::mono_now;
-using devices::to_timespec;
 double percentile(const std::vector<double>& sorted, double q) {
   if (sorted.empty()) return 0.0;
   const size_t i = std::min(sorted.size() - 1, static_cast<size_t>(std::ceil(q * sorted.size())) - 1);
@@ -32,11 +30,12 @@ nlohmann::json TimerFigures::to_json() const {
           {"idle_states", idle}};
 }
 
-TimerFigures measure_timer(long ticks, double period, int priority) {
+TimerFigures measure_timer(long ticks, double period, int priority, const std::atomic<bool>* until,
+                           long min_ticks, const std::atomic<bool>* abort) {
   TimerFigures out;
   std::vector<double> late;
   late.reserve(static_cast<size_t>(std::max(0L, ticks)));
-  const devices::CpuLatencyHold idle;  // as the haptic loop holds it
+  const CpuLatencyHold idle;  // as the haptic loop holds it
   out.idle = idle.note();
   std::thread t([&] {
     prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);
@@ -47,6 +46,8 @@ TimerFigures measure_timer(long ticks, double period, int priority) {
                              : std::string("SCHED_FIFO refused (") + std::strerror(rc) + "): normal scheduling";
     double deadline = mono_now() + period;
     for (long k = 0; k < ticks; ++k) {
+      if (until && k >= min_ticks && until->load(std::memory_order_relaxed)) break;
+      if (abort && abort->load(std::memory_order_relaxed)) break;
       const timespec ts = to_timespec(deadline);
       clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
       const double woke = mono_now();
@@ -72,4 +73,4 @@ TimerFigures measure_timer(long ticks, double period, int priority) {
   return out;
 }
 
-}  // namespace hapticloth::bench
+}  // namespace hapticloth::devices
