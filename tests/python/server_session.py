@@ -1,5 +1,5 @@
 """Running hapticloth-server as a user does, for the tests of stop signals and device presence
-(test_server_signals.py, test_udp_presence.py): the server as a subprocess whose output is read
+(test_stop_signal.py, test_udp_device.py): the server as a subprocess whose output is read
 as it comes, so a test can act at a moment of the session (after the preroll, when the server
 has printed its first `stage` line), the fake UDP rig (tools/fake_rig) as a second subprocess,
 and readers of what they leave behind (the summary, the LCM log, the rig's force log).

@@ -24,7 +24,7 @@ import pytest
 
 from buildpaths import build_dir, program
 from not_lcm_logs import NOT_LCM_LOGS, not_lcm_log
-from test_transport import Server, connect, free_port
+from test_client import Server, connect, free_port
 
 lcm = pytest.importorskip("lcm")
 

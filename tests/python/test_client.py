@@ -9,7 +9,7 @@ ttl=0 inside an `unshare --net` namespace; 192.0.2.0/24, a documentation range, 
 between two `ip netns` namespaces). Every wait is bounded.
 
 This file is also the script the namespace tests run inside their namespaces
-(`python test_transport.py <role> ...`).
+(`python test_client.py <role> ...`).
 """
 
 from __future__ import annotations
