@@ -2,6 +2,9 @@
 
 namespace hapticloth::haptics {
 
+// Ericson, Real-Time Collision Detection, 5.1.5: the point's Voronoi region of the triangle
+// (vertex, edge or face) by the signs of a few dot products; the tests for the regions of a and
+// b, and of the edges ab and ac, mirror each other by design.
 ClosestPoint closest_point_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
   ClosestPoint r;
   auto set = [&](double u, double v, double w) {
