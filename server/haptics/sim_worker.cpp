@@ -18,7 +18,8 @@ cloth::IntegratorConfig with_proxies(cloth::IntegratorConfig c, int proxies) {
   if (proxies > 0) c.alpha = 1.0;
   return c;
 }
-// The scene's fingertip as the contact model sees it.
+// The scene's fingertip as the contact model sees it: field by field, as the transport codec
+// maps the loop's figures into its message (alike in shape only: other fields).
 ContactParams contact_params(const FingerParams& f, double margin) {
   ContactParams p;
   p.radius = f.radius;

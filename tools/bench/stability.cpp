@@ -155,6 +155,7 @@ json verdict(const Outcome& o, double energy_bound, double penetration_tol) {
 
 }  // namespace
 
+// Opens as accuracy() does: the main scene and a progress printer.
 json stability(const StabilityOptions& opt) {
   const bool quick = opt.quick;
   const app::Scene sc = main_scene(opt.source_dir);

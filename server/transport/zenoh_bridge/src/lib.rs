@@ -309,7 +309,8 @@ pub struct HzQueryable {
     gate: Gate,
 }
 
-/// Declares a queryable on `key`. NULL on error.
+/// Declares a queryable on `key`. NULL on error. Declared as hz_declare_subscriber declares its
+/// subscriber: the C callback runs behind a gate, boxed with the handle (see Gate).
 #[no_mangle]
 pub extern "C" fn hz_declare_queryable(
     s: *const HzSession,
