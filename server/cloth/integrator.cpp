@@ -522,48 +522,61 @@ bool Integrator::proxy_response(std::vector<Mat3>& R) {
   return true;
 }
 
+// One (sub)step of eq. 9 that either is accepted into `s` or fails with its cause counted.
 Integrator::Attempt Integrator::single_step(ClothState& s, double h) {
-  auto t0 = Clock::now();
   last_h_ = h;
-  JacobianMode mode = cfg_.jacobian;
-  if (!assemble(s, h, mode)) {
+  const auto t0 = Clock::now();
+  if (!assemble(s, h, cfg_.jacobian)) {
     ++events_.non_finite;
     return Attempt::Failed;
   }
   timing_.assemble_ms += ms_since(t0);
-  // A slow blow-up gains a fraction of the energy on every step, which the per-step test below
-  // (relative to the current energy) never sees. So the total energy at the start of this step
-  // (kinetic, elastic, gravitational: from the assembly) is compared with the previous step's
-  // plus the external work done in it, and the energy created is summed with a 0.1 s memory
-  // (a stable step creates none on a linear problem; the one linearized solve per step of a
-  // stiffening law creates some at large steps: 3-10x the floor when the hanging square is
-  // released at dt 40 ms, which then comes to rest); past 10x the energy floor it is an
-  // explosion (hapticloth-bench stability: alpha 0.5 with a stiff material).
-  if (have_prev_energy_) {
-    const double gain = energy_old_ - prev_energy_ - last_work_;
-    const double excess = excess_energy_ * std::exp(-h / 0.1) + std::max(0.0, gain);
-    if (excess > 10.0 * cfg_.explosion_ratio * energy_floor_) {
-      ++events_.energy_explosions;
-      blown_up_ = true;
-      return Attempt::Failed;
-    }
-    pending_excess_ = excess;  // kept when the step is accepted
-  }
+  if (slow_blow_up(h)) return Attempt::Failed;
+  if (!solve(s, h)) return Attempt::Failed;
+  candidate_state(s, h);
+  if (!revise_contacts(s, h)) return Attempt::Failed;
+  double work = 0.0;
+  if (energy_explosion(s, work)) return Attempt::Failed;
+  accept(s, h, work);
+  return Attempt::Ok;
+}
 
-  auto t1 = Clock::now();
-  // Warm start: extrapolate the last two solutions linearly (dv changes smoothly in time).
+// A slow blow-up gains a fraction of the energy on every step, which the per-step test
+// (energy_explosion, relative to the current energy) never sees. So the total energy at the start
+// of this step (kinetic, elastic, gravitational: from the assembly) is compared with the previous
+// step's plus the external work done in it, and the energy created is summed with a 0.1 s memory
+// (a stable step creates none on a linear problem; the one linearized solve per step of a
+// stiffening law creates some at large steps: 3-10x the floor when the hanging square is
+// released at dt 40 ms, which then comes to rest); past 10x the energy floor it is an
+// explosion (hapticloth-bench stability: alpha 0.5 with a stiff material).
+bool Integrator::slow_blow_up(double h) {
+  if (!have_prev_energy_) return false;
+  const double gain = energy_old_ - prev_energy_ - last_work_;
+  const double excess = excess_energy_ * std::exp(-h / 0.1) + std::max(0.0, gain);
+  if (excess > 10.0 * cfg_.explosion_ratio * energy_floor_) {
+    ++events_.energy_explosions;
+    blown_up_ = true;
+    return true;
+  }
+  pending_excess_ = excess;  // kept when the step is accepted
+  return false;
+}
+
+// Eq. 9 for dv, warm-started from the last two solutions extrapolated linearly (dv changes
+// smoothly in time). Where the exact Hessian is indefinite (compression or large shear) the step
+// is assembled again with the positive semi-definite one. False, with the cause counted, if the
+// solver fails or dv is not finite.
+bool Integrator::solve(const ClothState& s, double h) {
+  const auto t1 = Clock::now();
   guess_ = 2.0 * dv_ - dv_prev_;
   dv_prev_ = dv_;
   dv_ = guess_;
   SolveStatus st = solver_->solve(A_, rhs_.data(), dv_.data());
   timing_.iterations += solver_->iterations();
-  if (st == SolveStatus::NotPositiveDefinite && mode == JacobianMode::Exact) {
-    // The exact Hessian is indefinite here (compression or large shear): fall back to the
-    // positive semi-definite one for this step.
+  if (st == SolveStatus::NotPositiveDefinite && cfg_.jacobian == JacobianMode::Exact) {
     ++events_.jacobian_fallbacks;
-    mode = JacobianMode::Spd;
-    auto t2 = Clock::now();
-    assemble(s, h, mode);
+    const auto t2 = Clock::now();
+    assemble(s, h, JacobianMode::Spd);
     timing_.assemble_ms += ms_since(t2);
     dv_.setZero();
     st = solver_->solve(A_, rhs_.data(), dv_.data());
@@ -578,37 +591,48 @@ Integrator::Attempt Integrator::single_step(ClothState& s, double h) {
     }
     dv_.setZero();
     dv_prev_.setZero();
-    return Attempt::Failed;
+    return false;
   }
   if (!dv_.allFinite()) {
     dv_prev_.setZero();
     ++events_.non_finite;
     dv_.setZero();
-    return Attempt::Failed;
+    return false;
   }
-  candidate_state(s, h);
-  // Active set: a contact that would pull or a point that would pass into a fingertip changes
-  // the point springs; solve again with them (warm-started from this solution).
+  return true;
+}
+
+// Active set: a contact that would pull or a point that would pass into a fingertip changes the
+// point springs; the step is solved again with them (warm-started from the last solution).
+bool Integrator::revise_contacts(const ClothState& s, double h) {
   for (int rev = 0; contacts_ && rev < cfg_.max_contact_revisions; ++rev) {
     springs_solved_.assign(springs_.begin(), springs_.end());
     if (!contacts_->revise(xn_, proxies_, springs_)) break;
     ++events_.contact_revisions;
-    auto t3 = Clock::now();
+    const auto t3 = Clock::now();
     add_springs(s, h, springs_solved_, -1.0);
     add_springs(s, h, springs_, 1.0);
-    const SolveStatus st2 = solver_->solve(A_, rhs_.data(), dv_.data());
+    const SolveStatus st = solver_->solve(A_, rhs_.data(), dv_.data());
     timing_.iterations += solver_->iterations();
     timing_.solve_ms += ms_since(t3);
-    if (st2 != SolveStatus::Ok || !dv_.allFinite()) {
-      ++(st2 == SolveStatus::Ok ? events_.non_finite : events_.solver_not_converged);
+    if (st != SolveStatus::Ok || !dv_.allFinite()) {
+      ++(st == SolveStatus::Ok ? events_.non_finite : events_.solver_not_converged);
       dv_.setZero();
       dv_prev_.setZero();
-      return Attempt::Failed;
+      return false;
     }
     candidate_state(s, h);
   }
+  return true;
+}
 
-  double ke = 0.0, eg = 0.0, work = 0.0;
+// Energy explosion: the step created far more energy than the external forces supplied (their
+// work over the step goes to `work`). The elastic energy is >= 0 (Psi >= 0 for laws through the
+// origin), so kinetic + gravitational energy is a lower bound of the new total and no second
+// pass over the elements is needed: a blow-up always shows in the velocities. Counted.
+bool Integrator::energy_explosion(const ClothState& s, double& work) {
+  double ke = 0.0, eg = 0.0;
+  work = 0.0;
   for (int i = 0; i < model_.num_vertices(); ++i) {
     if (model_.free_index[i] < 0) continue;
     ke += 0.5 * model_.mass[i] * vn_[i].squaredNorm();
@@ -616,20 +640,21 @@ Integrator::Attempt Integrator::single_step(ClothState& s, double h) {
     work += f_ext_[i].dot(xn_[i] - s.x[i]);
   }
   work += contact_work(s);
-  // Energy explosion: the step created far more energy than external forces supplied. The
-  // elastic energy is >= 0 (Psi >= 0 for laws through the origin), so kinetic + gravitational
-  // energy is a lower bound of the new total and no second pass over the elements is needed:
-  // a blow-up always shows in the velocities.
   const double e_new_lower = ke + eg;
   if (!std::isfinite(e_new_lower)) {
     ++events_.non_finite;
-    return Attempt::Failed;
+    return true;
   }
   const double gain = e_new_lower - energy_old_ - work;
   if (gain > cfg_.explosion_ratio * energy_scale_) {
     ++events_.energy_explosions;
-    return Attempt::Failed;
+    return true;
   }
+  return false;
+}
+
+// The candidate state becomes the state; the energy balance remembers this step.
+void Integrator::accept(ClothState& s, double h, double work) {
   last_work_ = work;
   if (have_prev_energy_) excess_energy_ = pending_excess_;
   prev_energy_ = energy_old_;
@@ -639,7 +664,6 @@ Integrator::Attempt Integrator::single_step(ClothState& s, double h) {
   for (auto& p : proxies_) p.x += p.displacement;
   s.time += h;
   ++timing_.substeps;
-  return Attempt::Ok;
 }
 
 Integrator::Attempt Integrator::advance(ClothState& s, double h, int depth) {

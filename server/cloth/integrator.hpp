@@ -144,6 +144,11 @@ class Integrator {
   enum class Attempt { Ok, Failed };
   Attempt advance(ClothState& s, double h, int depth);
   Attempt single_step(ClothState& s, double h);
+  bool slow_blow_up(double h);
+  bool solve(const ClothState& s, double h);
+  bool revise_contacts(const ClothState& s, double h);
+  bool energy_explosion(const ClothState& s, double& work);
+  void accept(ClothState& s, double h, double work);
   bool assemble(const ClothState& s, double h, JacobianMode mode);
   void assemble_proxies(const ClothState& s, double h);
   void add_springs(const ClothState& s, double h, const std::vector<PointSpring>& springs,
