@@ -257,6 +257,7 @@ class PcgSolver final : public LinearSolver {
     return true;
   }
 
+  // Preconditioned conjugate gradients from the guess in x, until |r| <= tolerance |b|.
   template <class T>
   SolveStatus iterate(const Bsr<T>& M, const double* b, double* x, int n, int nb) {
     double bn2 = 0.0;
@@ -278,40 +279,8 @@ class PcgSolver final : public LinearSolver {
     M.multiply_dot(x0_.data(), q);
     for (int i = 0; i < n; ++i) r[i] = b[i] - q[i];
     const double goal2 = opt_.tolerance * opt_.tolerance * bn2;
-    // z = M^-1 r and r . z, r . r in one pass.
-    auto precondition = [&](double& rr) {
-      double rz = 0.0;
-      rr = 0.0;
-      if (!cluster_.empty()) {  // the hubs and what they touch: one dense block
-        const int m = 3 * static_cast<int>(cluster_.size());
-        for (size_t a = 0; a < cluster_.size(); ++a)
-          for (int c = 0; c < 3; ++c) cz_[3 * a + c] = r[3 * cluster_[a] + c];
-        cholesky_solve(dense_.data(), m, cz_.data());
-        for (size_t a = 0; a < cluster_.size(); ++a)
-          for (int c = 0; c < 3; ++c) {
-            const int i = 3 * cluster_[a] + c;
-            z[i] = cz_[3 * a + c];
-            rz += r[i] * z[i];
-            rr += r[i] * r[i];
-          }
-      }
-      for (int br = 0; br < nb; ++br) {
-        if (local_[br] >= 0) continue;
-        const double* m = inv_.data() + 9 * br;
-        const double r0 = r[3 * br], r1 = r[3 * br + 1], r2 = r[3 * br + 2];
-        const double z0 = m[0] * r0 + m[1] * r1 + m[2] * r2;
-        const double z1 = m[3] * r0 + m[4] * r1 + m[5] * r2;
-        const double z2 = m[6] * r0 + m[7] * r1 + m[8] * r2;
-        z[3 * br] = z0;
-        z[3 * br + 1] = z1;
-        z[3 * br + 2] = z2;
-        rz += r0 * z0 + r1 * z1 + r2 * z2;
-        rr += r0 * r0 + r1 * r1 + r2 * r2;
-      }
-      return rz;
-    };
     double rr;
-    double rz = precondition(rr);
+    double rz = precondition(r, z, nb, rr);
     if (rr <= goal2) {
       residual_ = std::sqrt(rr) / bnorm;
       return SolveStatus::Ok;
@@ -326,7 +295,7 @@ class PcgSolver final : public LinearSolver {
         x[i] += alpha * p[i];
         r[i] -= alpha * q[i];
       }
-      const double rz_new = precondition(rr);
+      const double rz_new = precondition(r, z, nb, rr);
       if (!std::isfinite(rr)) return SolveStatus::NumericalError;
       if (rr <= goal2) {
         residual_ = std::sqrt(rr) / bnorm;
@@ -338,6 +307,41 @@ class PcgSolver final : public LinearSolver {
     }
     residual_ = std::sqrt(rr) / bnorm;
     return SolveStatus::NotConverged;
+  }
+
+  // z = M^-1 r, returning r . z, with r . r in `rr`, in one pass. M is block-Jacobi (the 3x3
+  // diagonal blocks' inverses) except on the cluster of hub rows and the nodes they touch, which
+  // is one dense block (factor_cluster).
+  double precondition(const double* r, double* z, int nb, double& rr) {
+    double rz = 0.0;
+    rr = 0.0;
+    if (!cluster_.empty()) {
+      const int m = 3 * static_cast<int>(cluster_.size());
+      for (size_t a = 0; a < cluster_.size(); ++a)
+        for (int c = 0; c < 3; ++c) cz_[3 * a + c] = r[3 * cluster_[a] + c];
+      cholesky_solve(dense_.data(), m, cz_.data());
+      for (size_t a = 0; a < cluster_.size(); ++a)
+        for (int c = 0; c < 3; ++c) {
+          const int i = 3 * cluster_[a] + c;
+          z[i] = cz_[3 * a + c];
+          rz += r[i] * z[i];
+          rr += r[i] * r[i];
+        }
+    }
+    for (int br = 0; br < nb; ++br) {
+      if (local_[br] >= 0) continue;
+      const double* m = inv_.data() + 9 * br;
+      const double r0 = r[3 * br], r1 = r[3 * br + 1], r2 = r[3 * br + 2];
+      const double z0 = m[0] * r0 + m[1] * r1 + m[2] * r2;
+      const double z1 = m[3] * r0 + m[4] * r1 + m[5] * r2;
+      const double z2 = m[6] * r0 + m[7] * r1 + m[8] * r2;
+      z[3 * br] = z0;
+      z[3 * br + 1] = z1;
+      z[3 * br + 2] = z2;
+      rz += r0 * z0 + r1 * z1 + r2 * z2;
+      rr += r0 * r0 + r1 * r1 + r2 * r2;
+    }
+    return rz;
   }
 
   // The preconditioner's dense block: the hub rows (proxies) with the nodes their non-zero
