@@ -36,7 +36,24 @@ LocalPatch::LocalPatch(const std::vector<std::array<int, 3>>& global_tris,
 void LocalPatch::rebuild(const ClothSnapshot& s, const Vec3& c) noexcept {
   nt_ = nv_ = ne_ = 0;
   centre_ = c;
-  // Global triangles with a corner within the radius, in index order up to the capacity.
+  const int ns = select(s, c);
+  if (ns == 0) return;
+  subdivide(ns);
+  springs();
+  mark_border(ns);
+  for (int v = 0; v < nv_; ++v) {
+    x_[v] = 0.5 * (s.x[ga_[v]] + s.x[gb_[v]]);
+    v_[v] = 0.5 * (s.v[ga_[v]] + s.v[gb_[v]]);
+  }
+  stable_substeps();
+  double el = 0.0;
+  for (int e = 0; e < ne_; ++e) el += rest_len_[e];
+  edge_mean_ = ne_ ? el / ne_ : 0.0;
+  normals();
+}
+
+// Global triangles with a corner within the radius, in index order up to the capacity.
+int LocalPatch::select(const ClothSnapshot& s, const Vec3& c) noexcept {
   int ns = 0;
   const double R2 = p_.radius * p_.radius;
   for (int t = 0; t < static_cast<int>(gt_.size()) && ns < p_.max_triangles; ++t) {
@@ -45,39 +62,47 @@ void LocalPatch::rebuild(const ClothSnapshot& s, const Vec3& c) noexcept {
     for (int k = 0; k < 3; ++k) in = in || (s.x[g[k]] - c).squaredNorm() < R2;
     if (in) sel_[ns++] = t;
   }
-  if (ns == 0) return;
-  for (auto& k : key_) k = {-1, -1, -1};
+  return ns;
+}
+
+// The patch vertex of global vertex a (a == b) or of the midpoint of global edge (a, b): found
+// in, or on first use added to, an open-addressing hash table on (a, b).
+int LocalPatch::patch_vertex(int a, int b) noexcept {
+  if (a > b) std::swap(a, b);
   const int cap = static_cast<int>(key_.size());
-  // Patch vertex of global vertex a (a == b) or of the midpoint of edge (a, b); counts uses
-  // of each edge in key_[.][?] is not needed: border edges are found below.
-  auto vertex = [&](int a, int b) {
-    if (a > b) std::swap(a, b);
-    unsigned h = (static_cast<unsigned>(a) * 73856093u) ^ (static_cast<unsigned>(b) * 19349663u);
-    for (int i = 0; i < cap; ++i) {
-      auto& e = key_[(h + i) % cap];
-      if (e[0] == a && e[1] == b) return e[2];
-      if (e[0] < 0) {
-        e = {a, b, nv_};
-        ga_[nv_] = a;
-        gb_[nv_] = b;
-        border_[nv_] = 0;
-        m_[nv_] = 0.0;
-        return nv_++;
-      }
+  unsigned h = (static_cast<unsigned>(a) * 73856093u) ^ (static_cast<unsigned>(b) * 19349663u);
+  for (int i = 0; i < cap; ++i) {
+    auto& e = key_[(h + i) % cap];
+    if (e[0] == a && e[1] == b) return e[2];
+    if (e[0] < 0) {
+      e = {a, b, nv_};
+      ga_[nv_] = a;
+      gb_[nv_] = b;
+      border_[nv_] = 0;
+      m_[nv_] = 0.0;
+      return nv_++;
     }
-    return 0;  // unreachable: the table holds 4x the capacity
-  };
+  }
+  return 0;  // unreachable: the table holds 4x the capacity
+}
+
+// Each selected global triangle into four, at its edge midpoints.
+void LocalPatch::subdivide(int ns) noexcept {
+  for (auto& k : key_) k = {-1, -1, -1};
   for (int i = 0; i < ns; ++i) {
     const auto& g = gt_[sel_[i]];
-    const int a = vertex(g[0], g[0]), b = vertex(g[1], g[1]), cc = vertex(g[2], g[2]);
-    const int ab = vertex(g[0], g[1]), bc = vertex(g[1], g[2]), ca = vertex(g[2], g[0]);
+    const int a = patch_vertex(g[0], g[0]), b = patch_vertex(g[1], g[1]), cc = patch_vertex(g[2], g[2]);
+    const int ab = patch_vertex(g[0], g[1]), bc = patch_vertex(g[1], g[2]), ca = patch_vertex(g[2], g[0]);
     tri_[nt_++] = {a, ab, ca};
     tri_[nt_++] = {ab, b, bc};
     tri_[nt_++] = {ca, bc, cc};
     tri_[nt_++] = {ab, bc, ca};
   }
-  // Rest geometry, masses (area / 3 per corner) and springs along every refined edge, each
-  // edge once, with stiffness E x (adjacent area) / L^2 (a spring network of modulus E).
+}
+
+// Rest geometry, masses (area / 3 per corner) and springs along every refined edge, each edge
+// once, with stiffness E x (adjacent area) / L^2 (a spring network of modulus E).
+void LocalPatch::springs() noexcept {
   auto rest_of = [&](int v) { return 0.5 * (rest_[ga_[v]] + rest_[gb_[v]]); };
   ne_ = 0;
   for (int t = 0; t < nt_; ++t) {
@@ -99,8 +124,11 @@ void LocalPatch::rebuild(const ClothSnapshot& s, const Vec3& c) noexcept {
       k_[e] += p_.stiffness * (area / 2.0) / (rest_len_[e] * rest_len_[e]);
     }
   }
-  // Border: refined vertices on the boundary of the patch (edges used by one selected global
-  // triangle) and pinned ones follow the global cloth.
+}
+
+// Border: refined vertices on the boundary of the patch (edges used by one selected global
+// triangle) and pinned ones follow the global cloth.
+void LocalPatch::mark_border(int ns) noexcept {
   for (int i = 0; i < ns; ++i) {
     const auto& g = gt_[sel_[i]];
     for (int k = 0; k < 3; ++k) {
@@ -112,20 +140,20 @@ void LocalPatch::rebuild(const ClothSnapshot& s, const Vec3& c) noexcept {
           uses += (h[l] == a && h[(l + 1) % 3] == b) || (h[l] == b && h[(l + 1) % 3] == a);
       }
       if (uses == 1) {
-        border_[vertex(a, a)] = border_[vertex(b, b)] = border_[vertex(a, b)] = 1;
+        border_[patch_vertex(a, a)] = border_[patch_vertex(b, b)] = border_[patch_vertex(a, b)] = 1;
       }
     }
   }
-  for (int v = 0; v < nv_; ++v) {
+  for (int v = 0; v < nv_; ++v)
     if (pinned_[ga_[v]] || pinned_[gb_[v]]) border_[v] = 1;
-    x_[v] = 0.5 * (s.x[ga_[v]] + s.x[gb_[v]]);
-    v_[v] = 0.5 * (s.v[ga_[v]] + s.v[gb_[v]]);
-  }
-  // Substeps for a stable explicit step: omega_max h < 2, with omega_max^2 bounded by
-  // Gershgorin as max over interior vertices of 2 (sum of spring stiffness) / m plus the
-  // fingertip spring on the lightest vertex. Taken so that omega_max h <= 1 (margin for the
-  // damping terms). Beyond max_substeps the springs are softened instead: a patch stiffer than
-  // the fingertip spring (the device's renderable stiffness) does not change what is felt.
+}
+
+// Substeps for a stable explicit step: omega_max h < 2, with omega_max^2 bounded by Gershgorin
+// as max over interior vertices of 2 (sum of spring stiffness) / m plus the fingertip spring on
+// the lightest vertex. Taken so that omega_max h <= 1 (margin for the damping terms). Beyond
+// max_substeps the springs are softened instead: a patch stiffer than the fingertip spring (the
+// device's renderable stiffness) does not change what is felt.
+void LocalPatch::stable_substeps() noexcept {
   for (int v = 0; v < nv_; ++v) kv_[v] = 0.0;
   for (int e = 0; e < ne_; ++e) {
     kv_[edge_[e][0]] += k_[e];
@@ -150,10 +178,6 @@ void LocalPatch::rebuild(const ClothSnapshot& s, const Vec3& c) noexcept {
     spring_scale_ = std::max(0.0, w2_allowed - w2_contact) / w2_springs;
     for (int e = 0; e < ne_; ++e) k_[e] *= spring_scale_;
   }
-  double el = 0.0;
-  for (int e = 0; e < ne_; ++e) el += rest_len_[e];
-  edge_mean_ = ne_ ? el / ne_ : 0.0;
-  normals();
 }
 
 void LocalPatch::border_positions(const ClothSnapshot& s, double now) noexcept {
@@ -181,105 +205,119 @@ void LocalPatch::normals() noexcept {
 
 Vec3 LocalPatch::step(const ClothSnapshot& s, double now, const PatchTouch& touch, Vec3& anchor,
                       bool& slipping) noexcept {
-  const bool contact = touch.contact;
-  const Vec3& c = touch.c;
-  const Vec3& vc = touch.vc;
-  const double r = touch.r, k = touch.k, mu = touch.mu;
-  const int side = touch.side, tri = touch.tri;
-  const double* b = touch.b;
   slipping = false;
   if (nt_ == 0) return Vec3::Zero();
-  const double tick = p_.haptic_period;
   border_positions(s, now);
   const int n = substeps_;
-  const double h = tick / n;
-  const bool touching = contact && tri >= 0 && tri < nt_;
-  // The touched point and its neighbourhood: the contact force is spread over the patch
-  // vertices within a fingertip's reach with a smooth kernel (as on the global cloth), and the
-  // touched point moves with their weighted displacement. A point force on the light refined
-  // vertices would dent and release them one by one as the finger slides.
-  int nw = 0;
-  Vec3 q0 = Vec3::Zero(), n0 = Vec3::UnitZ();
-  if (touching) {
-    const auto& t = tri_[tri];
-    q0 = b[0] * x_[t[0]] + b[1] * x_[t[1]] + b[2] * x_[t[2]];
-    n0 = (b[0] * n_[t[0]] + b[1] * n_[t[1]] + b[2] * n_[t[2]]).normalized() * side;
-    const double R = std::max(r, 1.5 * edge_mean_), R2 = R * R;
-    double sum = 0.0;
-    for (int v = 0; v < nv_ && nw < static_cast<int>(wi_.size()); ++v) {
-      const double d2 = (x_[v] - q0).squaredNorm();
-      if (d2 >= R2 || border_[v]) continue;
-      const double u = 1.0 - d2 / R2;
-      wi_[nw] = v;
-      ww_[nw] = m_[v] * u * u;
-      x0_[nw] = x_[v];
-      sum += ww_[nw];
-      ++nw;
-    }
-    if (sum <= 0.0) {
-      nw = 0;
-      for (int kk = 0; kk < 3; ++kk) {
-        wi_[nw] = t[kk];
-        ww_[nw] = b[kk];
-        x0_[nw] = x_[t[kk]];
-        ++nw;
-      }
-    } else {
-      for (int i = 0; i < nw; ++i) ww_[i] /= sum;
-    }
-  }
-  Vec3 q_prev = q0;
+  const double h = p_.haptic_period / n;
+  const bool touching = touch.contact && touch.tri >= 0 && touch.tri < nt_;
+  const Kernel K = touching ? contact_kernel(touch) : Kernel{};
+  Vec3 q_prev = K.q0;
   Vec3 user = Vec3::Zero();
   for (int it = 0; it < n; ++it) {
-    for (int v = 0; v < nv_; ++v) f_[v].setZero();
-    for (int e = 0; e < ne_; ++e) {
-      const int i = edge_[e][0], j = edge_[e][1];
-      const Vec3 d = x_[j] - x_[i];
-      const double L = d.norm();
-      if (L <= 0.0) continue;
-      const Vec3 f = k_[e] * (L - rest_len_[e]) / L * d;
-      f_[i] += f;
-      f_[j] -= f;
-    }
-    if (touching) {
-      Vec3 q = q0;
-      for (int i = 0; i < nw; ++i) q += ww_[i] * (x_[wi_[i]] - x0_[i]);
-      const Vec3& nn = n0;
-      const double depth = r - (c - q).dot(nn);
-      // Normal spring plus damping of the touched point's motion relative to the fingertip:
-      // the refined vertices are light, and the contact spring alone would ring at kHz.
-      Vec3 vq = Vec3::Zero();
-      for (int i = 0; i < nw; ++i) vq += ww_[i] * v_[wi_[i]];
-      const double fn = depth > 0.0 ? std::max(0.0, k * depth + p_.contact_damping * (vq - vc).dot(nn)) : 0.0;
-      // Friction: the anchor rides with the touched point; the spring to it sticks up to mu fn.
-      anchor += q - q_prev;
-      q_prev = q;
-      Vec3 d = anchor - c;
-      d -= d.dot(nn) * nn;
-      Vec3 ft = k * d;
-      const double lim = mu * fn, ftn = ft.norm();
-      if (ftn > lim) {
-        ft *= ftn > 0.0 ? lim / ftn : 0.0;
-        slipping = true;
-      }
-      anchor = c + ft / k + (anchor - c).dot(nn) * nn;
-      const Vec3 Fu = fn * nn + ft;  // on the user's finger
-      user += Fu;
-      for (int i = 0; i < nw; ++i) f_[wi_[i]] -= ww_[i] * Fu;
-    }
-    // Symplectic Euler for the interior, damped towards the cloth's own motion.
-    for (int v = 0; v < nv_; ++v) {
-      if (border_[v]) {
-        x_[v] += h * v_[v];
-        continue;
-      }
-      const Vec3 vg = 0.5 * (s.v[ga_[v]] + s.v[gb_[v]]);
-      v_[v] += h * (f_[v] / m_[v] - p_.damping * (v_[v] - vg));
-      x_[v] += h * v_[v];
-    }
+    spring_forces();
+    if (touching) user += contact_forces(touch, K, anchor, q_prev, slipping);
+    integrate(s, h);
   }
   normals();
   return user / n;
+}
+
+// The touched point and its neighbourhood: the contact force is spread over the patch vertices
+// within a fingertip's reach with a smooth kernel (as on the global cloth), and the touched
+// point moves with their weighted displacement. A point force on the light refined vertices
+// would dent and release them one by one as the finger slides.
+LocalPatch::Kernel LocalPatch::contact_kernel(const PatchTouch& touch) noexcept {
+  Kernel K;
+  const double* b = touch.b;
+  const auto& t = tri_[touch.tri];
+  K.q0 = b[0] * x_[t[0]] + b[1] * x_[t[1]] + b[2] * x_[t[2]];
+  K.n0 = (b[0] * n_[t[0]] + b[1] * n_[t[1]] + b[2] * n_[t[2]]).normalized() * touch.side;
+  const double R = std::max(touch.r, 1.5 * edge_mean_), R2 = R * R;
+  double sum = 0.0;
+  int& nw = K.n;
+  for (int v = 0; v < nv_ && nw < static_cast<int>(wi_.size()); ++v) {
+    const double d2 = (x_[v] - K.q0).squaredNorm();
+    if (d2 >= R2 || border_[v]) continue;
+    const double u = 1.0 - d2 / R2;
+    wi_[nw] = v;
+    ww_[nw] = m_[v] * u * u;
+    x0_[nw] = x_[v];
+    sum += ww_[nw];
+    ++nw;
+  }
+  if (sum <= 0.0) {
+    nw = 0;
+    for (int kk = 0; kk < 3; ++kk) {
+      wi_[nw] = t[kk];
+      ww_[nw] = b[kk];
+      x0_[nw] = x_[t[kk]];
+      ++nw;
+    }
+  } else {
+    for (int i = 0; i < nw; ++i) ww_[i] /= sum;
+  }
+  return K;
+}
+
+void LocalPatch::spring_forces() noexcept {
+  for (int v = 0; v < nv_; ++v) f_[v].setZero();
+  for (int e = 0; e < ne_; ++e) {
+    const int i = edge_[e][0], j = edge_[e][1];
+    const Vec3 d = x_[j] - x_[i];
+    const double L = d.norm();
+    if (L <= 0.0) continue;
+    const Vec3 f = k_[e] * (L - rest_len_[e]) / L * d;
+    f_[i] += f;
+    f_[j] -= f;
+  }
+}
+
+// One substep of the contact on the touched point: the normal spring (with damping) and the
+// Coulomb friction spring to `anchor`. Their reaction is spread over the kernel's vertices;
+// returns the force on the user's finger.
+Vec3 LocalPatch::contact_forces(const PatchTouch& touch, const Kernel& K, Vec3& anchor,
+                                Vec3& q_prev, bool& slipping) noexcept {
+  const Vec3& c = touch.c;
+  const double k = touch.k;
+  Vec3 q = K.q0;
+  for (int i = 0; i < K.n; ++i) q += ww_[i] * (x_[wi_[i]] - x0_[i]);
+  const Vec3& nn = K.n0;
+  const double depth = touch.r - (c - q).dot(nn);
+  // Normal spring plus damping of the touched point's motion relative to the fingertip: the
+  // refined vertices are light, and the contact spring alone would ring at kHz.
+  Vec3 vq = Vec3::Zero();
+  for (int i = 0; i < K.n; ++i) vq += ww_[i] * v_[wi_[i]];
+  const double fn = depth > 0.0 ? std::max(0.0, k * depth + p_.contact_damping * (vq - touch.vc).dot(nn)) : 0.0;
+  // Friction: the anchor rides with the touched point; the spring to it sticks up to mu fn.
+  anchor += q - q_prev;
+  q_prev = q;
+  Vec3 d = anchor - c;
+  d -= d.dot(nn) * nn;
+  Vec3 ft = k * d;
+  const double lim = touch.mu * fn, ftn = ft.norm();
+  if (ftn > lim) {
+    ft *= ftn > 0.0 ? lim / ftn : 0.0;
+    slipping = true;
+  }
+  anchor = c + ft / k + (anchor - c).dot(nn) * nn;
+  const Vec3 Fu = fn * nn + ft;  // on the user's finger
+  for (int i = 0; i < K.n; ++i) f_[wi_[i]] -= ww_[i] * Fu;
+  return Fu;
+}
+
+// Symplectic Euler for the interior, damped towards the cloth's own motion; the border moves
+// with its velocity.
+void LocalPatch::integrate(const ClothSnapshot& s, double h) noexcept {
+  for (int v = 0; v < nv_; ++v) {
+    if (border_[v]) {
+      x_[v] += h * v_[v];
+      continue;
+    }
+    const Vec3 vg = 0.5 * (s.v[ga_[v]] + s.v[gb_[v]]);
+    v_[v] += h * (f_[v] / m_[v] - p_.damping * (v_[v] - vg));
+    x_[v] += h * v_[v];
+  }
 }
 
 SurfacePoint LocalPatch::closest(const Vec3& p) const noexcept {

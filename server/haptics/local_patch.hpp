@@ -83,7 +83,26 @@ class LocalPatch {
   int global_triangle(int refined) const { return sel_[refined / 4]; }
 
  private:
+  // The contact kernel of a tick: the touched point q0 and its normal n0 at the start of the
+  // tick, over n vertices (wi_, ww_, x0_).
+  struct Kernel {
+    int n = 0;
+    Vec3 q0 = Vec3::Zero(), n0 = Vec3::UnitZ();
+  };
+  // rebuild()
+  int select(const ClothSnapshot& s, const Vec3& c) noexcept;
+  int patch_vertex(int a, int b) noexcept;
+  void subdivide(int ns) noexcept;
+  void springs() noexcept;
+  void mark_border(int ns) noexcept;
+  void stable_substeps() noexcept;
+  // step()
   void border_positions(const ClothSnapshot& s, double now) noexcept;
+  Kernel contact_kernel(const PatchTouch& touch) noexcept;
+  void spring_forces() noexcept;
+  Vec3 contact_forces(const PatchTouch& touch, const Kernel& K, Vec3& anchor, Vec3& q_prev,
+                      bool& slipping) noexcept;
+  void integrate(const ClothSnapshot& s, double h) noexcept;
   void normals() noexcept;
 
   const std::vector<std::array<int, 3>>& gt_;
