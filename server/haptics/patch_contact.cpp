@@ -27,7 +27,6 @@ void PatchContact::touch(const ClothSnapshot& s, double now, double, const Finge
                          FingerReport& out) noexcept {
   const int f = tip.finger;
   const Vec3& c = tip.centre;
-  const Vec3& vc = tip.velocity;
   Proxy& P = proxy_[f];
   out.position = c;
   out.proxy = c;
@@ -36,11 +35,7 @@ void PatchContact::touch(const ClothSnapshot& s, double now, double, const Finge
   out.slipping = false;
   out.triangle = -1;
   out.stiffness = 0.0;
-  if (s.time < 0.0 || !s.near[f]) {
-    P.contact = false;
-    P.side = 0;
-    return;
-  }
+  if (s.time < 0.0 || !s.near[f]) return separate(P);
   LocalPatch& patch = *patch_[f];
   if (!patch.active() || (c - patch.centre()).norm() > 0.5 * patch.params_radius()) {
     patch.rebuild(s, c);
@@ -48,57 +43,65 @@ void PatchContact::touch(const ClothSnapshot& s, double now, double, const Finge
     softened_ += patch.spring_scale() < 1.0;
   }
   const SurfacePoint sp = patch.closest(c);
-  if (sp.triangle < 0) {
-    P.contact = false;
-    P.side = 0;
-    return;
-  }
+  if (sp.triangle < 0) return separate(P);
   PatchTouch t;
   t.c = c;
-  t.vc = vc;
+  t.vc = tip.velocity;
   t.r = r_;
   t.k = k_;
   t.mu = mu_;
   for (int i = 0; i < 3; ++i) t.b[i] = sp.bary[i];
-  const Vec3 n = sp.normal;
-  const double h = (c - sp.point).dot(n);
-  const double dist = std::sqrt(sp.dist2);
+  const bool on = pressing(P, f, c, (c - sp.point).dot(sp.normal), std::sqrt(sp.dist2));
+  t.side = P.side;
+  if (!on) return release(patch, s, now, t, P);
+  t.contact = true;
+  t.tri = sp.triangle;
+  render(patch, s, now, t, sp, P, out);
+  out.impacts = impacts_[f];
+}
+
+void PatchContact::separate(Proxy& P) noexcept {
+  P.contact = false;
+  P.side = 0;
+}
+
+// Contact onset and end for a finger at c, h above the surface along its normal and dist from
+// it: true while the sphere presses into the cloth from the side it came from.
+bool PatchContact::pressing(Proxy& P, int finger, const Vec3& c, double h, double dist) noexcept {
   if (!P.contact) {
     // Separated: remember which side the finger is on; touching starts when the sphere reaches
     // the surface from that side.
     if (dist >= r_ || P.side == 0) {
       P.side = h >= 0.0 ? 1 : -1;
-      if (dist >= r_) {
-        t.side = P.side;
-        release(patch, s, now, t, P);
-        return;
-      }
+      if (dist >= r_) return false;
     }
     P.contact = true;
     P.anchor = c;
-    ++impacts_[f];  // contact onset: the simulation transfers the impact momentum (4.3.2)
+    ++impacts_[finger];  // contact onset: the simulation transfers the impact momentum (4.3.2)
   }
-  t.side = P.side;
   const double depth = r_ - P.side * h;  // > 0: pressing into the cloth
   if (depth <= 0.0) {
     P.contact = false;  // left the surface on its own side
-    release(patch, s, now, t, P);
-    return;
+    return false;
   }
-  const Vec3 ns = P.side * n;  // normal towards the finger
-  // The patch resolves the contact within the tick (normal and friction springs on every
-  // substep); the user feels their mean, plus damping on the fingertip's own velocity.
-  t.contact = true;
-  t.tri = sp.triangle;
+  return true;
+}
+
+// The patch resolves the contact within the tick (normal and friction springs on every
+// substep); the user feels their mean, plus damping on the fingertip's own velocity.
+void PatchContact::render(LocalPatch& patch, const ClothSnapshot& s, double now,
+                          const PatchTouch& t, const SurfacePoint& sp, Proxy& P,
+                          FingerReport& out) noexcept {
+  const Vec3 ns = P.side * sp.normal;  // normal towards the finger
   bool slipping = false;
   const Vec3 Fu = patch.step(s, now, t, P.anchor, slipping);
   const double fnp = Fu.dot(ns);
-  const double fn = std::max(0.0, fnp - b_ * vc.dot(ns));
+  const double fn = std::max(0.0, fnp - b_ * t.vc.dot(ns));
   const Vec3 Ft = Fu - fnp * ns;
   out.slipping = slipping;
   out.force = fn * ns + Ft;
   out.spring = out.force;
-  out.proxy = c + out.force / k_;
+  out.proxy = t.c + out.force / k_;
   out.normal = ns;
   out.contact = sp.point;
   const int bt = patch.global_triangle(sp.triangle);
@@ -109,8 +112,7 @@ void PatchContact::touch(const ClothSnapshot& s, double now, double, const Finge
   for (int i = 0; i < 3; ++i) out.bary[i] = gp.b[i];
   out.stiffness = k_;
   out.in_contact = true;
-  out.velocity = vc;
-  out.impacts = impacts_[f];
+  out.velocity = t.vc;
 }
 
 }  // namespace hapticloth::haptics

@@ -30,6 +30,10 @@ class PatchContact final : public SurfaceContact {
     int side = 0;                // which side of the cloth the finger is on (+1 along the normal)
     Vec3 anchor = Vec3::Zero();  // friction anchor on the surface
   };
+  void separate(Proxy& P) noexcept;
+  bool pressing(Proxy& P, int finger, const Vec3& c, double h, double dist) noexcept;
+  void render(LocalPatch& patch, const ClothSnapshot& s, double now, const PatchTouch& t,
+              const SurfacePoint& sp, Proxy& P, FingerReport& out) noexcept;
   void release(LocalPatch& patch, const ClothSnapshot& s, double now, const PatchTouch& t,
                Proxy& P) noexcept;
 
