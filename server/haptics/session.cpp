@@ -100,71 +100,11 @@ void Session::run_realtime(double seconds) {
   const double t_start = mono_now() + 0.01;
   // The simulation publishes once before the haptic loop starts.
   sim_->publish(0.0);
-
-  std::thread sim_thread([&] {
-    double next = t_start;
-    while (!stop_flag.load(std::memory_order_relaxed)) {
-      const double now = mono_now() - t_start;
-      sim_->step(now);
-      for (auto* o : observers_) o->on_sim_step(sim_->last_snapshot());
-      next += dt_sim_;
-      const double t = mono_now();
-      if (next > t) {
-        const timespec ts = to_timespec(next);
-        clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
-      } else {
-        next = t;  // behind: run as fast as the step allows
-      }
-    }
-  });
-
+  std::thread sim_thread([&] { sim_thread_loop(t_start, stop_flag); });
   std::thread haptic_thread([&] {
-    prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);  // wake on the deadline, not up to 50 us later
-    if (sc_.try_realtime) {
-      sched_param sp{};
-      sp.sched_priority = 80;
-      const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
-      r_.realtime_scheduling = rc == 0;
-      note = rc == 0 ? "SCHED_FIFO priority 80" : std::string("SCHED_FIFO refused (") + std::strerror(rc) + "): normal scheduling";
-    } else {
-      note = "real-time scheduling not requested";
-    }
-    const long ticks = std::lround(seconds * sc_.haptic_rate);
-    for (long k = 0; k < ticks && !stop_requested(); ++k) {
-      const double deadline = t_start + k * period;
-      // Sleep to just before the deadline, then spin the rest: the kernel's wake-up is late by
-      // tens of microseconds (more on a virtual machine); the spin costs spin_lead of CPU per tick.
-      const timespec ts = to_timespec(deadline - sc_.spin_lead);
-      clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
-      double woke = mono_now();
-      while (woke < deadline) woke = mono_now();
-      r_.haptic.period_error_us.add(std::abs(woke - deadline) * 1e6);
-      // A wake-up more than a period late (the kernel now and then wakes a thread milliseconds
-      // late): the ticks due meanwhile are skipped, counted as missed, not run in a burst.
-      const long due = static_cast<long>((woke - t_start) / period);
-      if (due > k) {
-        r_.haptic.missed_deadlines += static_cast<std::uint64_t>(due - k);
-        k = std::min(due, ticks - 1);
-      }
-      elapsed_ticks = k + 1;
-      loop_->tick(woke - t_start);
-      account_tick();
-      for (auto* o : observers_)
-        o->on_haptic_tick(loop_->last_report(), loop_->device_state(), loop_->last_command());
-      if (k % 1000 == 999)
-        for (auto* o : observers_) o->on_loop_stats(r_.haptic);
-      const double done = mono_now();
-      r_.haptic.compute_us.add((done - woke) * 1e6);
-      ++r_.haptic.ticks;
-      if (done > t_start + (k + 1) * period) ++r_.haptic.missed_deadlines;  // overran its own period
-    }
-    // The end (of the run, or a stop signal): zero force through the gate, at the loop rate.
-    const double t_end = mono_now();
-    for (long j = 1; j <= kWindDownTicks; ++j) {
-      const timespec ts = to_timespec(t_end + j * period);
-      clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
-      if (loop_->wind_down(mono_now() - t_start)) break;
-    }
+    note = haptic_thread_priority();
+    elapsed_ticks = haptic_ticks(seconds, t_start, period);
+    realtime_wind_down(t_start, period);
   });
   haptic_thread.join();
   stop_flag = true;
@@ -173,6 +113,82 @@ void Session::run_realtime(double seconds) {
   r_.scheduling_note = idle ? note + ", " + idle->note() : note;
   if (r_.memory_locked) munlockall();
   stop();
+}
+
+// The simulation thread: a step per integrator dt on absolute deadlines, as fast as the step
+// allows when behind.
+void Session::sim_thread_loop(double t_start, const std::atomic<bool>& stop_flag) {
+  double next = t_start;
+  while (!stop_flag.load(std::memory_order_relaxed)) {
+    const double now = mono_now() - t_start;
+    sim_->step(now);
+    for (auto* o : observers_) o->on_sim_step(sim_->last_snapshot());
+    next += dt_sim_;
+    const double t = mono_now();
+    if (next > t) {
+      const timespec ts = to_timespec(next);
+      clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+    } else {
+      next = t;  // behind: run as fast as the step allows
+    }
+  }
+}
+
+// SCHED_FIFO for the calling (haptic) thread when asked and permitted; returns what it got.
+std::string Session::haptic_thread_priority() {
+  prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);  // wake on the deadline, not up to 50 us later
+  if (!sc_.try_realtime) return "real-time scheduling not requested";
+  sched_param sp{};
+  sp.sched_priority = 80;
+  const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+  r_.realtime_scheduling = rc == 0;
+  return rc == 0 ? "SCHED_FIFO priority 80"
+                 : std::string("SCHED_FIFO refused (") + std::strerror(rc) + "): normal scheduling";
+}
+
+// The haptic loop at its rate for `seconds` (or until a stop request): returns the ticks due.
+long Session::haptic_ticks(double seconds, double t_start, double period) {
+  const long ticks = std::lround(seconds * sc_.haptic_rate);
+  long elapsed = 0;
+  for (long k = 0; k < ticks && !stop_requested(); ++k) {
+    const double deadline = t_start + k * period;
+    // Sleep to just before the deadline, then spin the rest: the kernel's wake-up is late by
+    // tens of microseconds (more on a virtual machine); the spin costs spin_lead of CPU per tick.
+    const timespec ts = to_timespec(deadline - sc_.spin_lead);
+    clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+    double woke = mono_now();
+    while (woke < deadline) woke = mono_now();
+    r_.haptic.period_error_us.add(std::abs(woke - deadline) * 1e6);
+    // A wake-up more than a period late (the kernel now and then wakes a thread milliseconds
+    // late): the ticks due meanwhile are skipped, counted as missed, not run in a burst.
+    const long due = static_cast<long>((woke - t_start) / period);
+    if (due > k) {
+      r_.haptic.missed_deadlines += static_cast<std::uint64_t>(due - k);
+      k = std::min(due, ticks - 1);
+    }
+    elapsed = k + 1;
+    loop_->tick(woke - t_start);
+    account_tick();
+    for (auto* o : observers_)
+      o->on_haptic_tick(loop_->last_report(), loop_->device_state(), loop_->last_command());
+    if (k % 1000 == 999)
+      for (auto* o : observers_) o->on_loop_stats(r_.haptic);
+    const double done = mono_now();
+    r_.haptic.compute_us.add((done - woke) * 1e6);
+    ++r_.haptic.ticks;
+    if (done > t_start + (k + 1) * period) ++r_.haptic.missed_deadlines;  // overran its own period
+  }
+  return elapsed;
+}
+
+// The end (of the run, or a stop signal): zero force through the gate, at the loop rate.
+void Session::realtime_wind_down(double t_start, double period) {
+  const double t_end = mono_now();
+  for (long j = 1; j <= kWindDownTicks; ++j) {
+    const timespec ts = to_timespec(t_end + j * period);
+    clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+    if (loop_->wind_down(mono_now() - t_start)) break;
+  }
 }
 
 SessionReport Session::report() const {

@@ -105,6 +105,11 @@ class Session {
   void start();
   void stop();
   void account_tick();
+  // run_realtime()'s threads.
+  void sim_thread_loop(double t_start, const std::atomic<bool>& stop_flag);
+  std::string haptic_thread_priority();
+  long haptic_ticks(double seconds, double t_start, double period);
+  void realtime_wind_down(double t_start, double period);
   /// Most closing ticks that bring the force to zero through the gate's slew limit (the
   /// default 1000 N/s takes 5 ms from 5 N).
   static constexpr long kWindDownTicks = 200;
