@@ -110,6 +110,14 @@ TEST(Hub, RejectsABadServerName) {
   EXPECT_THROW(Hub(o, small_scene()), std::runtime_error);
 }
 
+TEST(Hub, RejectsADeviceThatFailsValidation) {
+  TransportOptions o = options();
+  o.zenoh = false;
+  SceneInfo s = small_scene();
+  s.device.fingers = 1;  // a pinch needs two
+  EXPECT_THROW(Hub(o, s), std::runtime_error);
+}
+
 TEST(Hub, SkipsEverythingWithoutSubscribersOrLog) {
   Hub hub(options(), small_scene());
   hub.on_sim_step(snapshot(0.0, 1));

@@ -1,0 +1,68 @@
+#include "transport/hub_transports.hpp"
+
+#include "transport/lcm_bus.hpp"
+#include "transport/zenoh_session.hpp"
+
+namespace hapticloth::transport {
+
+HubTransports::HubTransports(const TransportOptions& opt, Inputs in) {
+  for (int t = 0; t < kTopics; ++t) channel_[t] = lcm_channel(topic_name(static_cast<Topic>(t)));
+  if (opt.zenoh) {
+    zenoh_ = std::make_unique<ZenohSession>(opt.zenoh_config, opt.zenoh_listen);
+    for (int t = 0; t < kTopics; ++t)
+      zpub_[t] = std::make_unique<ZenohPublisher>(
+          *zenoh_, key_expression(opt.server_name, topic_name(static_cast<Topic>(t))));
+    zcmd_ = std::make_unique<ZenohSubscriber>(*zenoh_, key_expression(opt.server_name, "trajectory"),
+                                              in.command);
+    zscene_ = std::make_unique<ZenohQueryable>(*zenoh_, key_expression(opt.server_name, "scene"),
+                                               in.scene);
+  }
+  if (!opt.lcm_url.empty()) {
+    lcm_ = std::make_unique<LcmBus>(opt.lcm_url);
+    lcm_->subscribe(lcm_channel("trajectory"), in.command);
+    lcm_->subscribe(lcm_channel("scene_request"),
+                    [request = in.scene_request](const std::uint8_t*, std::size_t) { request(); });
+    lcm_->start();
+  }
+  if (!opt.lcm_log.empty()) log_ = std::make_unique<LcmBus>(lcm_log_url(opt.lcm_log));
+}
+
+HubTransports::~HubTransports() { close(); }
+
+void HubTransports::close_inputs() {
+  zcmd_.reset();
+  zscene_.reset();
+}
+
+void HubTransports::close() {
+  close_inputs();
+  lcm_.reset();
+  log_.reset();
+  for (auto& p : zpub_) p.reset();
+  zenoh_.reset();
+}
+
+bool HubTransports::wanted(Topic t) const {
+  const auto& z = zpub_[static_cast<int>(t)];
+  return (z && z->matching()) || lcm_ || log_;
+}
+
+bool HubTransports::admit(Topic t) {
+  if (wanted(t)) return true;
+  skipped_[static_cast<int>(t)].fetch_add(1);
+  return false;
+}
+
+void HubTransports::send(Topic t, const std::vector<std::uint8_t>& bytes) {
+  const int i = static_cast<int>(t);
+  if (zpub_[i] && zpub_[i]->matching()) zpub_[i]->put(bytes.data(), bytes.size());
+  if (lcm_) lcm_->publish(channel_[i], bytes.data(), bytes.size());
+  if (log_) log_->publish(channel_[i], bytes.data(), bytes.size());
+  published_[i].fetch_add(1, std::memory_order_relaxed);
+}
+
+void HubTransports::log_command(const std::vector<std::uint8_t>& bytes) {
+  if (log_) log_->publish(lcm_channel("trajectory"), bytes.data(), bytes.size());
+}
+
+}  // namespace hapticloth::transport

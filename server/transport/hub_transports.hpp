@@ -1,0 +1,72 @@
+// The transports a Hub owns: a zenoh session with a publisher per topic, the trajectory
+// subscriber and the scene queryable; an LCM provider, which also takes trajectory commands and
+// scene requests; an LCM log file. Nothing is sent on a topic nobody can receive.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "transport/options.hpp"
+#include "transport/topics.hpp"
+
+namespace hapticloth::transport {
+
+class ZenohSession;
+class ZenohPublisher;
+class ZenohSubscriber;
+class ZenohQueryable;
+class LcmBus;
+
+class HubTransports {
+ public:
+  /// What comes in, called on the transports' own threads: trajectory_cmd_t bytes (zenoh or
+  /// LCM), an LCM scene_request_t, and the bytes the scene queryable answers with.
+  struct Inputs {
+    std::function<void(const std::uint8_t*, std::size_t)> command;
+    std::function<void()> scene_request;
+    std::function<std::vector<std::uint8_t>()> scene;
+  };
+
+  /// Opens what `opt` asks for. Throws std::runtime_error naming the transport that cannot be
+  /// opened (zenoh listen endpoint in use, bad config file, unwritable log, bad LCM URL).
+  HubTransports(const TransportOptions& opt, Inputs in);
+  ~HubTransports();
+  HubTransports(const HubTransports&) = delete;
+  HubTransports& operator=(const HubTransports&) = delete;
+
+  /// No zenoh input callback runs once this returns.
+  void close_inputs();
+  /// Closes everything (LCM first: its receive thread ends here). Also done by the destructor.
+  void close();
+
+  /// True if some transport wants topic t now (a matching zenoh subscriber, an LCM provider or
+  /// the log); otherwise the message is counted as skipped.
+  bool admit(Topic t);
+  /// Sends on every transport that wants it, counted as published.
+  void send(Topic t, const std::vector<std::uint8_t>& bytes);
+  /// A trajectory command as received, to the log only (none: dropped).
+  void log_command(const std::vector<std::uint8_t>& bytes);
+  bool logging() const { return log_ != nullptr; }
+
+  /// Any thread.
+  std::uint64_t published(Topic t) const { return published_[static_cast<int>(t)].load(); }
+  std::uint64_t skipped(Topic t) const { return skipped_[static_cast<int>(t)].load(); }
+
+ private:
+  bool wanted(Topic t) const;
+
+  std::unique_ptr<ZenohSession> zenoh_;
+  std::array<std::unique_ptr<ZenohPublisher>, kTopics> zpub_;
+  std::unique_ptr<ZenohSubscriber> zcmd_;
+  std::unique_ptr<ZenohQueryable> zscene_;
+  std::unique_ptr<LcmBus> lcm_, log_;
+  std::array<std::string, kTopics> channel_;
+  std::array<std::atomic<std::uint64_t>, kTopics> published_{}, skipped_{};
+};
+
+}  // namespace hapticloth::transport

@@ -1,0 +1,78 @@
+#include "transport/loop_mailboxes.hpp"
+
+#include <algorithm>
+
+namespace hapticloth::transport {
+
+namespace {
+void copy3(std::array<float, 3>& dst, const Eigen::Vector3d& v) {
+  dst = {static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z())};
+}
+
+LoopMailboxes::ClothFrame sized_frame(std::size_t vertices) {
+  LoopMailboxes::ClothFrame f;
+  f.x.resize(vertices);
+  return f;
+}
+}  // namespace
+
+LoopMailboxes::LoopMailboxes(std::size_t vertices, int fingers, double cloth_rate)
+    : fingers_(fingers),
+      cloth_period_(1.0 / cloth_rate),
+      cloth_(sized_frame(vertices)),
+      stats_(LoopSummary{}),
+      samples_(kSamples) {}
+
+void LoopMailboxes::put_cloth(const haptics::ClothSnapshot& s) noexcept {
+  if (next_cloth_time_ >= 0.0 && s.time < next_cloth_time_ - 1e-9) return;
+  next_cloth_time_ =
+      std::max(next_cloth_time_ < 0.0 ? s.time : next_cloth_time_, s.time - cloth_period_) + cloth_period_;
+  ClothFrame& f = cloth_.back();
+  if (f.x.size() != s.x.size()) return;  // another mesh: never resize here
+  f.time = s.time;
+  f.step = s.step;
+  for (std::size_t i = 0; i < s.x.size(); ++i) copy3(f.x[i], s.x[i]);
+  cloth_.publish();
+}
+
+void LoopMailboxes::put_tick(const haptics::HapticReport& r, const devices::DeviceState& state,
+                             const devices::DeviceCommand& cmd) noexcept {
+  const bool stale = (cmd.flags & devices::kFlagStale) != 0;
+  if (stale && !was_stale_) watchdog_trips_.fetch_add(1, std::memory_order_relaxed);
+  was_stale_ = stale;
+  if (cmd.flags & devices::kFlagFault) nan_forces_.fetch_add(1, std::memory_order_relaxed);
+
+  HapticSample s;
+  s.time = r.time;
+  s.tick = r.tick;
+  s.flags = static_cast<std::int32_t>(cmd.flags);
+  for (int f = 0; f < fingers_; ++f) {
+    const haptics::FingerReport& fr = r.finger[f];
+    copy3(s.device[f], state.finger[f].position);
+    copy3(s.position[f], fr.position);
+    copy3(s.proxy[f], fr.proxy);
+    copy3(s.force[f], fr.force);
+    copy3(s.command[f], cmd.force[f]);
+    s.contact[f] = fr.in_contact;
+    s.slipping[f] = fr.slipping;
+  }
+  if (!samples_.push(s)) dropped_.fetch_add(1, std::memory_order_relaxed);  // publisher behind
+}
+
+void LoopMailboxes::put_stats(const haptics::LoopStats& s) noexcept {
+  stats_.back() = summarize(s);
+  stats_.publish();
+}
+
+const LoopMailboxes::ClothFrame* LoopMailboxes::take_cloth() {
+  return cloth_.acquire() ? &cloth_.front() : nullptr;
+}
+
+const LoopSummary* LoopMailboxes::take_stats() { return stats_.acquire() ? &stats_.front() : nullptr; }
+
+void LoopMailboxes::take_samples(std::vector<HapticSample>& out) {
+  HapticSample s;
+  while (out.size() < out.capacity() && samples_.pop(s)) out.push_back(s);
+}
+
+}  // namespace hapticloth::transport

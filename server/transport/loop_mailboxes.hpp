@@ -1,0 +1,66 @@
+// What the session's loops hand the Hub's publisher thread: the newest cloth frame (at most
+// cloth_rate a second) and the newest loop statistics through triple buffers, every haptic
+// sample through a ring, and counts of the faults the haptic loop flagged. The loop side copies
+// into storage allocated here: no lock, no allocation.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "hal/rt_handoff.hpp"
+#include "haptics/observer.hpp"
+#include "transport/codec.hpp"
+
+namespace hapticloth::transport {
+
+class LoopMailboxes {
+ public:
+  /// Cloth positions as published (float, the message's precision).
+  struct ClothFrame {
+    double time = -1.0;
+    std::uint64_t step = 0;
+    std::vector<std::array<float, 3>> x;
+  };
+  static constexpr std::size_t kSamples = 4096;  ///< haptic samples the ring holds (4 s at 1 kHz)
+
+  /// Set-up: frames of `vertices` vertices, samples of `fingers` fingers.
+  LoopMailboxes(std::size_t vertices, int fingers, double cloth_rate);
+
+  // The loops' side (one writer each: the simulation thread, the haptic thread).
+  void put_cloth(const haptics::ClothSnapshot& s) noexcept;
+  void put_tick(const haptics::HapticReport& r, const devices::DeviceState& state,
+                const devices::DeviceCommand& cmd) noexcept;
+  void put_stats(const haptics::LoopStats& s) noexcept;
+
+  // The publisher's side.
+  /// The newest cloth frame if one came since the last call, else nullptr.
+  const ClothFrame* take_cloth();
+  /// The newest loop statistics if new, else nullptr.
+  const LoopSummary* take_stats();
+  /// Appends the samples waiting, oldest first, up to `out`'s capacity (so never allocates
+  /// once it is reserved).
+  void take_samples(std::vector<HapticSample>& out);
+
+  int fingers() const { return fingers_; }
+  /// Any thread.
+  std::uint64_t samples_dropped() const { return dropped_.load(); }
+  std::uint64_t watchdog_trips() const { return watchdog_trips_.load(); }
+  std::uint64_t nan_forces() const { return nan_forces_.load(); }
+
+ private:
+  const int fingers_;
+  const double cloth_period_;
+  devices::TripleBuffer<ClothFrame> cloth_;
+  double next_cloth_time_ = -1.0;  // simulation thread only
+  devices::TripleBuffer<LoopSummary> stats_;
+  devices::SpscRing<HapticSample> samples_;
+  // The gate starts stale (no device sample yet), and counts a trip on each fresh -> stale
+  // transition; so does this (the summary's stale events and the watchdog events agree).
+  bool was_stale_ = true;  // haptic thread only
+  std::atomic<std::uint64_t> dropped_{0}, watchdog_trips_{0}, nan_forces_{0};
+};
+
+}  // namespace hapticloth::transport

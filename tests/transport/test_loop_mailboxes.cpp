@@ -1,0 +1,86 @@
+// LoopMailboxes: the loops' handoff to the Hub's publisher, without threads.
+#include <gtest/gtest.h>
+
+#include "support/alloc_counter.hpp"
+#include "transport/loop_mailboxes.hpp"
+
+namespace hapticloth::transport {
+namespace {
+
+haptics::HapticReport report(std::uint64_t tick) {
+  haptics::HapticReport r;
+  r.tick = tick;
+  r.time = tick * 1e-3;
+  return r;
+}
+
+TEST(LoopMailboxes, SamplesComeOutInOrderAndAFullRingCountsTheRestAsDropped) {
+  LoopMailboxes m(4, 2, 60.0);
+  const std::size_t n = LoopMailboxes::kSamples + 10;
+  for (std::size_t k = 0; k < n; ++k) m.put_tick(report(k), devices::DeviceState{}, devices::DeviceCommand{});
+  EXPECT_EQ(m.samples_dropped(), 10u);
+  std::vector<HapticSample> out;
+  out.reserve(LoopMailboxes::kSamples);
+  m.take_samples(out);
+  ASSERT_EQ(out.size(), LoopMailboxes::kSamples);
+  for (std::size_t k = 0; k < out.size(); ++k) ASSERT_EQ(out[k].tick, k);
+  out.clear();
+  m.take_samples(out);
+  EXPECT_TRUE(out.empty());
+}
+
+TEST(LoopMailboxes, TakeSamplesStopsAtTheCapacityReserved) {
+  LoopMailboxes m(4, 2, 60.0);
+  for (std::uint64_t k = 0; k < 30; ++k) m.put_tick(report(k), devices::DeviceState{}, devices::DeviceCommand{});
+  std::vector<HapticSample> out;
+  out.reserve(20);
+  const std::size_t cap = out.capacity();
+  m.take_samples(out);
+  EXPECT_EQ(out.size(), cap);
+  EXPECT_EQ(out.capacity(), cap);
+}
+
+TEST(LoopMailboxes, TheClothComesAtMostAtTheClothRate) {
+  LoopMailboxes m(1, 2, 10.0);  // every 0.1 s
+  haptics::ClothSnapshot s;
+  s.resize(1);
+  int frames = 0;
+  for (int k = 0; k < 100; ++k) {  // 1 s of 10 ms steps
+    s.time = k * 0.01;
+    s.step = k;
+    m.put_cloth(s);
+    if (m.take_cloth()) ++frames;
+  }
+  EXPECT_EQ(frames, 10);
+  EXPECT_EQ(m.take_cloth(), nullptr);
+}
+
+TEST(LoopMailboxes, WatchdogTripsCountFreshToStaleTransitions) {
+  LoopMailboxes m(1, 2, 60.0);
+  devices::DeviceCommand stale, fresh, fault;
+  stale.flags = devices::kFlagStale;
+  fault.flags = devices::kFlagFault;
+  // Stale from the start (no sample yet) is not a trip; each fresh -> stale is.
+  for (const auto* c : {&stale, &fresh, &stale, &stale, &fresh, &fault, &stale})
+    m.put_tick(report(0), devices::DeviceState{}, *c);
+  EXPECT_EQ(m.watchdog_trips(), 2u);
+  EXPECT_EQ(m.nan_forces(), 1u);
+}
+
+TEST(LoopMailboxes, TheLoopsSideDoesNotAllocate) {
+  LoopMailboxes m(100, 5, 60.0);
+  haptics::ClothSnapshot s;
+  s.resize(100);
+  haptics::LoopStats ls;
+  test::AllocationGuard guard;
+  for (int k = 0; k < 5000; ++k) {  // past the ring's capacity: drops allocate nothing either
+    m.put_tick(report(k), devices::DeviceState{}, devices::DeviceCommand{});
+    s.time = k * 1e-3;
+    m.put_cloth(s);
+    if (k % 1000 == 0) m.put_stats(ls);
+  }
+  EXPECT_EQ(guard.count(), 0u);
+}
+
+}  // namespace
+}  // namespace hapticloth::transport
