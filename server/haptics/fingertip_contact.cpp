@@ -4,7 +4,9 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
+#include "hal/device.hpp"
 #include "haptics/geometry.hpp"
 
 namespace hapticloth::haptics {
@@ -31,8 +33,10 @@ FingertipContact::FingertipContact(const cloth::ClothModel& model,
       p_(p),
       integ_(integ),
       bp_(model.rest_positions, tris) {
-  if (fingers_ < 0 || fingers_ > kMaxFingers)
-    throw std::invalid_argument("fingertip contact: finger count out of range");
+  if (!devices::valid_finger_count(fingers_))
+    throw std::invalid_argument("fingertip contact: a device has " + std::to_string(devices::kMinFingers) +
+                                " to " + std::to_string(devices::kMaxFingers) + " fingers, not " +
+                                std::to_string(fingers_));
   if (static_cast<int>(integ_.proxies().size()) < fingers_)
     throw std::invalid_argument("fingertip contact: the integrator needs a proxy per finger");
   if (!(p_.radius > 0.0) || !(p_.pressure_stiffness > 0.0) || !(p_.coupling_stiffness > 0.0))
