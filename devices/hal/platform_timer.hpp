@@ -15,6 +15,9 @@
 
 namespace hapticloth::devices {
 
+/// The haptic thread's SCHED_FIFO priority (the session's), at which the platform is measured.
+constexpr int kHapticThreadPriority = 80;
+
 struct TimerFigures {
   long ticks = 0;
   double p50_us = 0.0, p99_us = 0.0, p999_us = 0.0, max_us = 0.0, mean_us = 0.0;
@@ -29,7 +32,7 @@ struct TimerFigures {
 /// missed (as cyclictest does), so one late wake-up counts once. With `until`, it stops early
 /// once `*until` is true and at least `min_ticks` were taken; with `abort`, as soon as
 /// `*abort` is true.
-TimerFigures measure_timer(long ticks, double period = 1e-3, int priority = 80,
+TimerFigures measure_timer(long ticks, double period = 1e-3, int priority = kHapticThreadPriority,
                            const std::atomic<bool>* until = nullptr, long min_ticks = 0,
                            const std::atomic<bool>* abort = nullptr);
 

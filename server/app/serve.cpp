@@ -122,7 +122,8 @@ Plan plan(Scene& scene, const cloth::ClothModel& model, const devices::DeviceHan
     std::atomic<bool> settled{false};
     devices::TimerFigures timer;
     std::thread t([&] {
-      timer = devices::measure_timer(kPlatformTicksMax, 1.0 / scene.haptics.haptic_rate, 80, &settled,
+      timer = devices::measure_timer(kPlatformTicksMax, 1.0 / scene.haptics.haptic_rate,
+                                     devices::kHapticThreadPriority, &settled,
                                      kPlatformTicksMin, stop);
     });
     step_ms = settle(scene, model, p.state, stop);

@@ -18,6 +18,7 @@
 
 #include "hal/cpu_latency.hpp"
 #include "hal/mono_clock.hpp"
+#include "hal/platform_timer.hpp"
 
 namespace hapticloth::haptics {
 
@@ -139,10 +140,10 @@ std::string Session::haptic_thread_priority() {
   prctl(PR_SET_TIMERSLACK, 1UL, 0, 0, 0);  // wake on the deadline, not up to 50 us later
   if (!sc_.try_realtime) return "real-time scheduling not requested";
   sched_param sp{};
-  sp.sched_priority = 80;
+  sp.sched_priority = devices::kHapticThreadPriority;
   const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
   r_.realtime_scheduling = rc == 0;
-  return rc == 0 ? "SCHED_FIFO priority 80"
+  return rc == 0 ? "SCHED_FIFO priority " + std::to_string(devices::kHapticThreadPriority)
                  : std::string("SCHED_FIFO refused (") + std::strerror(rc) + "): normal scheduling";
 }
 
