@@ -364,6 +364,8 @@ def test_command_line_record_and_inject(tmp_path):
         conn = ["--server", "t", "--endpoint", srv.endpoint]
         rec = subprocess.Popen([str(bindir / "hapticloth-record"), str(log), "--duration", "2"] + conn,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        # inject only once the recorder's subscriptions are in place, or its events are missed
+        assert rec.stderr.readline().startswith(f"recording {log}"), rec.stderr.read()
         ok = subprocess.run([str(bindir / "hapticloth-inject"), str(csv)] + conn,
                             capture_output=True, text=True, timeout=60)
         assert ok.returncode == 0, ok.stderr

@@ -137,15 +137,22 @@ def _record(argv):
     _check_timeout(a)
     check_writable(a.out)
     c, scene = _connect(a)
+    started = True
     with c:
         rec = c.record(a.out, topics)
         try:
             if "scene" in topics:  # the scene first, so the log stands on its own
                 rec._writer("scene")(scene.encode())
-            time.sleep(a.duration)
+            started = rec.wait_started(a.timeout)
+            if started:
+                print(f"recording {a.out} for {a.duration:g} s", file=sys.stderr, flush=True)
+                time.sleep(a.duration)
         except KeyboardInterrupt:
             pass
         counts = rec.stop()
+    if not started:
+        raise UserError(f"{_where(a)}: no {rec.started_by} message from server '{a.server}' "
+                        f"within --timeout {a.timeout:g} s")
     print(" ".join(f"{t}={n}" for t, n in counts.items()))
     return 0
 

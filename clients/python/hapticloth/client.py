@@ -361,6 +361,10 @@ def positions_from_haptics(samples, speed=1.0, lead=0.1, min_step=0.005):
     return out
 
 
+#: Topics the server publishes continuously while it runs (the others come on events).
+STREAMING_TOPICS = ("cloth", "haptics", "stats")
+
+
 class Recorder:
     """Writes every received message into an LCM log (what lcm-logplayer and lcm.EventLog
     read). Counts per topic in `counts`."""
@@ -373,7 +377,11 @@ class Recorder:
         self.path = path
         self.counts = {t: 0 for t in topics}
         self._client = client
-        self._subs = [client.subscribe(t, self._writer(t), raw=True) for t in topics]
+        # Streaming topics are declared last: a zenoh session's declarations take effect in
+        # order, so once the last one delivers, every subscription before it is in place too.
+        order = sorted(topics, key=lambda t: t in STREAMING_TOPICS)
+        self.started_by = order[-1] if order and order[-1] in STREAMING_TOPICS else None
+        self._subs = [client.subscribe(t, self._writer(t), raw=True) for t in order]
 
     def _writer(self, topic):
         ch = channel(topic)
@@ -384,6 +392,14 @@ class Recorder:
                     self._log.write_event(now_utime(), ch, data)
                     self.counts[topic] += 1
         return write
+
+    def wait_started(self, timeout):
+        """Waits until the subscriptions are in place: the last-declared streaming topic has
+        delivered a message. True at once when only event topics are recorded (nothing
+        streams to prove it); False when `timeout` s pass first."""
+        if self.started_by is None:
+            return True
+        return bool(wait_for(lambda: self.counts[self.started_by] > 0, timeout))
 
     def stop(self):
         c = self._client
