@@ -194,6 +194,7 @@ def run_scripted(tmp_path, record_to=None, replay_from=None):
         c.subscribe_state(s.on_cloth)
         rec = c.record(str(record_to), ["haptics", "cloth", "events"]) if record_to else None
         assert first.wait(10.0), "no haptic samples"
+        assert rec is None or rec.wait_started(10.0), "the recorder got no cloth message"
         if replay_from:
             c.listen_for_answers()
             sent = c.replay(str(replay_from), mode="positions")
