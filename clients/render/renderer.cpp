@@ -10,6 +10,7 @@
 #include <GL/gl.h>
 #include <Eigen/Geometry>
 
+#include "cloth/cool_warm.hpp"
 #include "render/strain.hpp"
 
 namespace hapticloth::render {
@@ -187,16 +188,9 @@ const char* color_mode_name(ColorMode m) {
 }
 
 Rgb diverging_color(double x) {
-  // Blue - light grey - red, after Moreland's cool-warm map.
-  static constexpr double kStops[5][3] = {
-      {59, 76, 192}, {141, 176, 254}, {226, 226, 222}, {244, 154, 123}, {180, 4, 38}};
-  if (!std::isfinite(x)) return {150, 150, 150};
-  const double t = (std::clamp(x, -1.0, 1.0) + 1.0) * 2.0;  // 0..4
-  const int i = std::min(3, static_cast<int>(t));
-  const double f = t - i;
-  Rgb c;
-  for (int k = 0; k < 3; ++k) c[k] = static_cast<std::uint8_t>(std::lround(kStops[i][k] * (1 - f) + kStops[i + 1][k] * f));
-  return c;
+  const std::array<double, 3> c = cloth::cool_warm(x);
+  return {static_cast<std::uint8_t>(std::lround(c[0])), static_cast<std::uint8_t>(std::lround(c[1])),
+          static_cast<std::uint8_t>(std::lround(c[2]))};
 }
 
 std::vector<Vec3f> framing_points(const ClothFrame& frame, const HapticTick* haptics, const Style& style) {

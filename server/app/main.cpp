@@ -13,6 +13,7 @@
 #include "app/stop_signal.hpp"
 #include "app/toml_file.hpp"
 #include "registry.hpp"
+#include "transport/foxglove_sink.hpp"
 
 namespace {
 
@@ -62,6 +63,24 @@ void add_transport_options(CLI::App& cli, Args& a) {
   cli.add_option("--lcm-log", tr.lcm_log, "LCM log of the run (every message); default out/<scene>.lcm")
       ->check(opts::writable_file());
   cli.add_flag("--no-lcm-log", a.no_lcm_log, "do not write the LCM log");
+  cli.add_option("--foxglove", tr.foxglove,
+                 "Foxglove live view (WebSocket) on HOST:PORT; without a value 127.0.0.1:8765 (off by default)")
+      ->expected(0, 1)
+      ->default_str("127.0.0.1:8765")
+      ->check(CLI::Validator(
+          [](std::string& s) -> std::string {
+            std::string host;
+            std::uint16_t port = 0;
+            try {
+              transport::parse_host_port(s, "", host, port);
+            } catch (const std::invalid_argument& e) {
+              return std::string(e.what()).substr(1);  // "--foxglove: <s>: why"
+            }
+            return "";
+          },
+          "HOST:PORT"));
+  cli.add_option("--mcap", tr.mcap, "record the Foxglove channels to this new MCAP file")
+      ->check(opts::new_file());
   cli.add_option("--cloth-rate", tr.cloth_rate, "Hz, cloth state messages (default 60)")
       ->check(opts::positive(1000.0, "Hz"));
   cli.add_option("--max-command-speed", tr.max_command_speed, "m/s, fastest injected fingertip trajectory (default 1)")

@@ -21,6 +21,7 @@
 #include "haptics/session.hpp"
 #include "registry.hpp"
 #include "remote/command_sink.hpp"
+#include "transport/foxglove_sink.hpp"
 #include "transport/hub.hpp"
 
 namespace hapticloth::app {
@@ -161,6 +162,21 @@ Plan plan(Scene& scene, const cloth::ClothModel& model, const devices::DeviceHan
   return p;
 }
 
+// ws://HOST:PORT of the live view, with the port it got (the one asked for, or any free one for 0).
+std::string foxglove_address(const std::string& asked, std::uint16_t port) {
+  return "ws://" + asked.substr(0, asked.rfind(':')) + ":" + std::to_string(port);
+}
+
+// The Foxglove channels' message counts: "/cloth 120, /fingertips 200, ...".
+std::string foxglove_counts(const transport::FoxgloveSink& fox) {
+  std::string s;
+  for (int c = 0; c < transport::FoxgloveSink::kChannels; ++c) {
+    const auto ch = static_cast<transport::FoxgloveSink::Channel>(c);
+    s += (c ? ", " : "") + std::string(transport::FoxgloveSink::channel_name(ch)) + " " + std::to_string(fox.written(ch));
+  }
+  return s;
+}
+
 // The Hub that publishes the session over zenoh / LCM and feeds a remote device; without
 // zenoh (and says so) when its endpoint cannot be opened and zenoh is not required.
 std::unique_ptr<transport::Hub> connect_transport(const Scene& scene, const ServeOptions& opt,
@@ -175,9 +191,12 @@ std::unique_ptr<transport::Hub> connect_transport(const Scene& scene, const Serv
   info.device_origin = sc.mapping.origin;
   info.haptic_rate = sc.haptic_rate;
   transport::TransportOptions to = opt.transport;
+  to.finger_radius = sc.finger.radius;
   std::unique_ptr<transport::Hub> hub;
   try {
     hub = transport::make_hub(to, info);
+  } catch (const transport::FoxgloveOpenError&) {
+    throw;  // asked for by name: never dropped
   } catch (const std::runtime_error& e) {
     if (opt.transport_required || !to.zenoh) throw;
     std::cerr << "hapticloth-server: " << e.what() << "; running without zenoh\n";
@@ -197,6 +216,9 @@ std::unique_ptr<transport::Hub> connect_transport(const Scene& scene, const Serv
                                               : std::string("off"))
         << ", LCM " << (o.lcm_url.empty() ? "off" : o.lcm_url) << ", log "
         << (o.lcm_log.empty() ? "off" : o.lcm_log) << "\n";
+    if (const transport::FoxgloveSink* fox = hub->foxglove())
+      out << "foxglove         live " << (o.foxglove.empty() ? std::string("off") : foxglove_address(o.foxglove, fox->port()))
+          << ", MCAP " << (o.mcap.empty() ? "off" : o.mcap) << "\n";
   }
   return hub;
 }
@@ -260,6 +282,14 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
     j["integrator_events"] = ev.total();
     j["trajectory_commands"] = {{"accepted", hs.commands_accepted}, {"rejected", hs.commands_rejected}};
     j["stopped"] = stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(stopped);
+    if (const transport::FoxgloveSink* fox = hub.foxglove()) {
+      nlohmann::json f = {{"port", fox->port()}, {"mcap", hub.options().mcap}, {"undecodable", fox->undecodable()}};
+      for (int c = 0; c < transport::FoxgloveSink::kChannels; ++c) {
+        const auto ch = static_cast<transport::FoxgloveSink::Channel>(c);
+        f["messages"][transport::FoxgloveSink::channel_name(ch)] = fox->written(ch);
+      }
+      j["foxglove"] = f;
+    }
     if (p.platform) {
       j["platform_timer"] = p.platform->to_json();
       j["period_error_p99_excess_us"] = r.haptic.period_error_us.quantile(0.99) - p.platform->p99_us;
@@ -280,13 +310,20 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
   if (!record.empty())
     out << "device record    " << record << ": " << dc.record_rows << " rows, " << dc.record_dropped
         << " dropped (buffer full)" << (record_error.empty() ? "" : ", " + record_error) << "\n";
+  if (const transport::FoxgloveSink* fox = hub.foxglove())
+    out << "foxglove         " << foxglove_counts(*fox) << " messages" << "\n";
   if (!stopped.empty()) out << "stopped          " << stopped << "\n";
 }
 
-// 1 if the device failed during the session (a driver Error turned its handle Failed) or its
-// record could not be written, each said on stderr; else 0.
-int exit_status(const devices::DeviceHandle& dev, const haptics::Session& session) {
+// 1 if the device failed during the session (a driver Error turned its handle Failed), its
+// record could not be written or the MCAP file not finished, each said on stderr; else 0.
+int exit_status(const devices::DeviceHandle& dev, const haptics::Session& session,
+                const std::string& mcap_error) {
   int rc = 0;
+  if (!mcap_error.empty()) {
+    std::cerr << "hapticloth-server: " << mcap_error << "\n";
+    rc = 1;
+  }
   if (dev.failed_since_activation()) {
     std::cerr << "hapticloth-server: device " << dev.info().name << " failed during the session ("
               << session.report().device_errors << " device errors)\n";
@@ -315,8 +352,9 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   DropReporter drops;
   const auto hub = connect_transport(scene, opt, p.session, dev, session, drops, out);
   const std::string stopped = run(scene, opt, model, dev, p, duration, session, *hub, out);
+  const std::string mcap_error = hub->finish();  // everything published, the MCAP file finished
   report(scene, opt, dev, p, session, *hub, stopped, out);
-  return exit_status(dev, session);
+  return exit_status(dev, session, mcap_error);
 }
 
 }  // namespace hapticloth::app

@@ -30,11 +30,16 @@ Hub::Hub(const TransportOptions& opt, SceneInfo scene)
                             [this] { return messages_.info_bytes(); }}),
       publisher_(opt_, messages_, loops_, events_, commands_, transports_) {}
 
-Hub::~Hub() {
+Hub::~Hub() { finish(); }
+
+std::string Hub::finish() {
+  if (finished_) return finish_error_;
+  finished_ = true;
   transports_.close_inputs();  // no zenoh command callback runs after this
   post_event("stopped", "server " + opt_.server_name + " stops publishing");
-  publisher_.stop();    // the last samples, statistics and events
-  transports_.close();  // and LCM's receive thread
+  publisher_.stop();                     // the last samples, statistics and events
+  finish_error_ = transports_.close();   // and LCM's receive thread; the MCAP file finished
+  return finish_error_;
 }
 
 void Hub::on_sim_step(const haptics::ClothSnapshot& s) noexcept { loops_.put_cloth(s); }

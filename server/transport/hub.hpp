@@ -85,6 +85,12 @@ class Hub : public haptics::SessionObserver {
 
   /// Publishes everything pending now and returns when done (tests, shutdown).
   void flush() { publisher_.flush(); }
+  /// Ends publishing: the "stopped" event, the last messages, the transports closed (the MCAP
+  /// file finished). Returns "" or why the MCAP file could not be finished. Also done by the
+  /// destructor; stats() stay readable after it.
+  std::string finish();
+  /// The Foxglove live view and recording (counts per channel), or null.
+  const FoxgloveSink* foxglove() const { return transports_.foxglove(); }
   HubStats stats() const;
   const TransportOptions& options() const { return opt_; }
   const SceneInfo& scene() const { return scene_; }
@@ -102,6 +108,8 @@ class Hub : public haptics::SessionObserver {
   LoopMailboxes loops_;
   HubTransports transports_;
   HubPublisher publisher_;
+  bool finished_ = false;
+  std::string finish_error_;
 };
 
 /// The Hub, or throws (see Hub::Hub).

@@ -1,5 +1,7 @@
 #include "transport/hub_transports.hpp"
 
+#include "transport/codec.hpp"
+#include "transport/foxglove_sink.hpp"
 #include "transport/lcm_bus.hpp"
 #include "transport/zenoh_session.hpp"
 
@@ -25,6 +27,9 @@ HubTransports::HubTransports(const TransportOptions& opt, Inputs in) {
     lcm_->start();
   }
   if (!opt.lcm_log.empty()) log_ = std::make_unique<LcmBus>(lcm_log_url(opt.lcm_log));
+  if (!opt.foxglove.empty() || !opt.mcap.empty())
+    fox_ = std::make_unique<FoxgloveSink>(
+        FoxgloveOptions{opt.foxglove, opt.mcap, opt.server_name, opt.finger_radius});
 }
 
 HubTransports::~HubTransports() { close(); }
@@ -34,17 +39,25 @@ void HubTransports::close_inputs() {
   zscene_.reset();
 }
 
-void HubTransports::close() {
+std::string HubTransports::close() {
   close_inputs();
   lcm_.reset();
   log_.reset();
+  if (fox_) {
+    try {
+      fox_->close();
+    } catch (const std::runtime_error& e) {
+      fox_error_ = e.what();
+    }
+  }
   for (auto& p : zpub_) p.reset();
   zenoh_.reset();
+  return fox_error_;
 }
 
 bool HubTransports::wanted(Topic t) const {
   const auto& z = zpub_[static_cast<int>(t)];
-  return (z && z->matching()) || lcm_ || log_;
+  return (z && z->matching()) || lcm_ || log_ || (fox_ && fox_->wants(t));
 }
 
 bool HubTransports::admit(Topic t) {
@@ -58,6 +71,7 @@ void HubTransports::send(Topic t, const std::vector<std::uint8_t>& bytes) {
   if (zpub_[i] && zpub_[i]->matching()) zpub_[i]->put(bytes.data(), bytes.size());
   if (lcm_) lcm_->publish(channel_[i], bytes.data(), bytes.size());
   if (log_) log_->publish(channel_[i], bytes.data(), bytes.size());
+  if (fox_ && fox_->wants(t)) fox_->send(t, bytes.data(), bytes.size(), wall_utime());
   published_[i].fetch_add(1, std::memory_order_relaxed);
 }
 

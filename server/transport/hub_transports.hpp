@@ -1,6 +1,7 @@
 // The transports a Hub owns: a zenoh session with a publisher per topic, the trajectory
 // subscriber and the scene queryable; an LCM provider, which also takes trajectory commands and
-// scene requests; an LCM log file. Nothing is sent on a topic nobody can receive.
+// scene requests; an LCM log file; the Foxglove live view and MCAP recording. Nothing is sent
+// on a topic nobody can receive.
 #pragma once
 
 #include <array>
@@ -21,6 +22,7 @@ class ZenohPublisher;
 class ZenohSubscriber;
 class ZenohQueryable;
 class LcmBus;
+class FoxgloveSink;
 
 class HubTransports {
  public:
@@ -41,8 +43,9 @@ class HubTransports {
 
   /// No zenoh input callback runs once this returns.
   void close_inputs();
-  /// Closes everything (LCM first: its receive thread ends here). Also done by the destructor.
-  void close();
+  /// Closes everything (LCM first: its receive thread ends here; the MCAP file is finished).
+  /// Also done by the destructor. Returns "" or why the MCAP file could not be finished.
+  std::string close();
 
   /// True if some transport wants topic t now (a matching zenoh subscriber, an LCM provider or
   /// the log); otherwise the message is counted as skipped.
@@ -52,6 +55,8 @@ class HubTransports {
   /// A trajectory command as received, to the log only (none: dropped).
   void log_command(const std::vector<std::uint8_t>& bytes);
   bool logging() const { return log_ != nullptr; }
+  /// The Foxglove live view and recording, or null.
+  const FoxgloveSink* foxglove() const { return fox_.get(); }
 
   /// Any thread.
   std::uint64_t published(Topic t) const { return published_[static_cast<int>(t)].load(); }
@@ -65,6 +70,8 @@ class HubTransports {
   std::unique_ptr<ZenohSubscriber> zcmd_;
   std::unique_ptr<ZenohQueryable> zscene_;
   std::unique_ptr<LcmBus> lcm_, log_;
+  std::unique_ptr<FoxgloveSink> fox_;
+  std::string fox_error_;  // the recording could not be finished (close)
   std::array<std::string, kTopics> channel_;
   std::array<std::atomic<std::uint64_t>, kTopics> published_{}, skipped_{};
 };

@@ -1,4 +1,4 @@
-// Configuration of the state transports (zenoh and LCM), from the command line and the scene's
+// Configuration of the state transports (zenoh, LCM, Foxglove), from the command line and the scene's
 // [transport] table.
 #pragma once
 
@@ -14,6 +14,9 @@ struct TransportOptions {
   std::string zenoh_listen = "tcp/127.0.0.1:7447";
   std::string lcm_url;                  ///< extra LCM provider URL (udpm only inside a netns)
   std::string lcm_log;                  ///< file:// log path; empty: none
+  std::string foxglove;                 ///< HOST:PORT of the Foxglove live view; empty: off
+  std::string mcap;                     ///< MCAP recording (Foxglove channels); empty: none
+  double finger_radius = 0.008;         ///< m, the fingertip spheres of the Foxglove view
   double cloth_rate = 60.0;             ///< Hz, cloth state messages
   double haptic_batch = 0.01;           ///< s, haptic samples per message (1 kHz batched)
   double max_command_speed = 1.0;       ///< m/s, fastest fingertip a trajectory command may ask

@@ -75,9 +75,13 @@ int main(int argc, char** argv) {
   using namespace hapticloth;
   if (argc >= 2 && std::string(argv[1]) == "udp") return exec_sibling("hapticloth-bench-udp", argc, argv);
   if (argc >= 2 && std::string(argv[1]) == "haptic" &&
-      std::any_of(argv + 2, argv + argc, [](const char* a) { return std::string(a).rfind("--subscribers", 0) == 0; })) {
-    // With subscribers: the server and its zenoh and LCM subscribers run as processes inside a
-    // network namespace (Python: clients/python/hapticloth/bench_subscribers.py).
+      std::any_of(argv + 2, argv + argc, [](const char* a) {
+        const std::string s(a);
+        return s.rfind("--subscribers", 0) == 0 || s.rfind("--foxglove-clients", 0) == 0;
+      })) {
+    // With subscribers: the server and its zenoh and LCM subscribers (or Foxglove's WebSocket
+    // clients) run as processes inside a network namespace (Python:
+    // clients/python/hapticloth/bench_subscribers.py).
     const std::string py = std::string(HAPTICLOTH_SOURCE_DIR) + "/.venv/bin/python";
     std::vector<char*> args{const_cast<char*>(py.c_str()), const_cast<char*>("-m"),
                             const_cast<char*>("hapticloth.bench_subscribers")};
@@ -142,6 +146,8 @@ int main(int argc, char** argv) {
   haptic->add_option("--subscribers", subscribers_help,
                      "N subscribers (half zenoh, half LCM) at a 120 Hz cloth rate: the period error "
                      "against none, median of 3 off/on pairs, beside the platform timer");
+  haptic->add_option("--foxglove-clients", subscribers_help,
+                     "N Foxglove WebSocket clients on the live view (on in every run), as --subscribers");
 
   auto* timer = cli.add_subcommand(
       "timer", "the platform's wake-up latency at the haptic thread's scheduling, cyclictest-style "

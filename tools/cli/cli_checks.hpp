@@ -57,6 +57,20 @@ inline CLI::Validator writable_file() {
       "FILE");
 }
 
+/// A new file the program will write (writable_file, and nothing there yet: a recording is
+/// never overwritten).
+inline CLI::Validator new_file() {
+  return CLI::Validator(
+      [](std::string& path) -> std::string {
+        std::string e = writable_file()(path);
+        if (!e.empty()) return e;
+        std::error_code ec;
+        if (std::filesystem::exists(path, ec)) return path + " exists (a recording is never overwritten)";
+        return "";
+      },
+      "NEW_FILE");
+}
+
 /// Parses; on a usage error prints CLI11's message and returns 2 (0 for --help). Returns -1
 /// when the program should go on.
 inline int parse(CLI::App& app, int argc, char** argv) {

@@ -17,6 +17,8 @@ use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::query::{Query, Queryable};
 use zenoh::{Config, Session, Wait};
 
+mod foxglove_sink;
+
 thread_local! {
     static LAST_ERROR: RefCell<String> = const { RefCell::new(String::new()) };
 }
