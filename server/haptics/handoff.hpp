@@ -47,11 +47,20 @@ struct ClothSnapshot {
   /// how finger p's force moves with finger q's fingertip until the next global step.
   bool has_response = false;
   std::array<Eigen::Matrix3d, kMaxFingers * kMaxFingers> response{};
+  /// The patch model's candidates (multirate path, local model "patch"): per finger, the global
+  /// triangles with a corner within reach of the fingertip at the step (SimWorker::
+  /// mark_patch_candidates), in index order, found on the simulation thread so that a patch
+  /// built on the haptic thread scans these and not the whole mesh. The first near_count[f]
+  /// entries of near_triangles[f] hold them.
+  std::array<std::vector<int>, kMaxFingers> near_triangles;
+  std::array<int, kMaxFingers> near_count{};
 
-  void resize(int vertices) {
+  /// Storage for `vertices` vertices and `candidates` patch candidates per finger.
+  void resize(int vertices, int candidates = 0) {
     x.assign(vertices, Vec3::Zero());
     v.assign(vertices, Vec3::Zero());
     n.assign(vertices, Vec3::UnitZ());
+    for (auto& t : near_triangles) t.assign(candidates, 0);
   }
   /// Copy that keeps this snapshot's storage (no allocation when sizes match).
   void assign(const ClothSnapshot& o) {
@@ -64,6 +73,10 @@ struct ClothSnapshot {
     proxy = o.proxy;
     has_response = o.has_response;
     response = o.response;
+    near_count = o.near_count;
+    for (std::size_t f = 0; f < near_triangles.size(); ++f)
+      std::copy(o.near_triangles[f].begin(), o.near_triangles[f].begin() + o.near_count[f],
+                near_triangles[f].begin());
   }
 };
 

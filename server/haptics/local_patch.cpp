@@ -28,15 +28,17 @@ LocalPatch::LocalPatch(const std::vector<std::array<int, 3>>& global_tris,
   kv_.assign(V, 0.0);
   sel_.assign(T, 0);
   key_.assign(4 * V, {-1, -1, -1});
+  edge_key_.assign(4 * E, {-1, -1, -1});
+  uses_.assign(V, 0);
   wi_.assign(128, 0);
   ww_.assign(128, 0.0);
   x0_.assign(128, Vec3::Zero());
 }
 
-void LocalPatch::rebuild(const ClothSnapshot& s, const Vec3& c) noexcept {
+void LocalPatch::rebuild(const ClothSnapshot& s, int finger, const Vec3& c) noexcept {
   nt_ = nv_ = ne_ = 0;
   centre_ = c;
-  const int ns = select(s, c);
+  const int ns = select(s, finger, c);
   if (ns == 0) return;
   subdivide(ns);
   springs();
@@ -52,11 +54,15 @@ void LocalPatch::rebuild(const ClothSnapshot& s, const Vec3& c) noexcept {
   normals();
 }
 
-// Global triangles with a corner within the radius, in index order up to the capacity.
-int LocalPatch::select(const ClothSnapshot& s, const Vec3& c) noexcept {
+// Global triangles with a corner within the radius, in index order up to the capacity, among
+// the finger's candidates that the simulation thread listed in the snapshot (never a scan of
+// the whole mesh here, on the haptic thread).
+int LocalPatch::select(const ClothSnapshot& s, int finger, const Vec3& c) noexcept {
   int ns = 0;
   const double R2 = p_.radius * p_.radius;
-  for (int t = 0; t < static_cast<int>(gt_.size()) && ns < p_.max_triangles; ++t) {
+  const std::vector<int>& cand = s.near_triangles[finger];
+  for (int i = 0; i < s.near_count[finger] && ns < p_.max_triangles; ++i) {
+    const int t = cand[i];
     const auto& g = gt_[t];
     bool in = false;
     for (int k = 0; k < 3; ++k) in = in || (s.x[g[k]] - c).squaredNorm() < R2;
@@ -79,6 +85,7 @@ int LocalPatch::patch_vertex(int a, int b) noexcept {
       ga_[nv_] = a;
       gb_[nv_] = b;
       border_[nv_] = 0;
+      uses_[nv_] = 0;
       m_[nv_] = 0.0;
       return nv_++;
     }
@@ -86,13 +93,17 @@ int LocalPatch::patch_vertex(int a, int b) noexcept {
   return 0;  // unreachable: the table holds 4x the capacity
 }
 
-// Each selected global triangle into four, at its edge midpoints.
+// Each selected global triangle into four, at its edge midpoints. A midpoint's use count is
+// the number of selected triangles on its global edge (mark_border).
 void LocalPatch::subdivide(int ns) noexcept {
   for (auto& k : key_) k = {-1, -1, -1};
   for (int i = 0; i < ns; ++i) {
     const auto& g = gt_[sel_[i]];
     const int a = patch_vertex(g[0], g[0]), b = patch_vertex(g[1], g[1]), cc = patch_vertex(g[2], g[2]);
     const int ab = patch_vertex(g[0], g[1]), bc = patch_vertex(g[1], g[2]), ca = patch_vertex(g[2], g[0]);
+    ++uses_[ab];
+    ++uses_[bc];
+    ++uses_[ca];
     tri_[nt_++] = {a, ab, ca};
     tri_[nt_++] = {ab, b, bc};
     tri_[nt_++] = {ca, bc, cc};
@@ -100,48 +111,53 @@ void LocalPatch::subdivide(int ns) noexcept {
   }
 }
 
+// The refined edge (i, j): found in, or on first use added to, an open-addressing hash table,
+// with its rest length.
+int LocalPatch::refined_edge(int i, int j) noexcept {
+  if (i > j) std::swap(i, j);
+  const int cap = static_cast<int>(edge_key_.size());
+  unsigned h = (static_cast<unsigned>(i) * 73856093u) ^ (static_cast<unsigned>(j) * 19349663u);
+  for (int n = 0; n < cap; ++n) {
+    auto& e = edge_key_[(h + n) % cap];
+    if (e[0] == i && e[1] == j) return e[2];
+    if (e[0] < 0) {
+      e = {i, j, ne_};
+      edge_[ne_] = {i, j};
+      rest_len_[ne_] = (0.5 * (rest_[ga_[i]] + rest_[gb_[i]]) - 0.5 * (rest_[ga_[j]] + rest_[gb_[j]])).norm();
+      k_[ne_] = 0.0;
+      return ne_++;
+    }
+  }
+  return 0;  // unreachable: the table holds 4x the capacity
+}
+
 // Rest geometry, masses (area / 3 per corner) and springs along every refined edge, each edge
 // once, with stiffness E x (adjacent area) / L^2 (a spring network of modulus E).
 void LocalPatch::springs() noexcept {
   auto rest_of = [&](int v) { return 0.5 * (rest_[ga_[v]] + rest_[gb_[v]]); };
   ne_ = 0;
+  for (auto& k : edge_key_) k = {-1, -1, -1};
   for (int t = 0; t < nt_; ++t) {
     const auto& tr = tri_[t];
     const Vec3 a = rest_of(tr[0]), b = rest_of(tr[1]), cc = rest_of(tr[2]);
     const double area = 0.5 * (b - a).cross(cc - a).norm();
     for (int k = 0; k < 3; ++k) {
       m_[tr[k]] += p_.areal_density * area / 3.0;
-      int i = tr[k], j = tr[(k + 1) % 3];
-      if (i > j) std::swap(i, j);
-      int e = 0;
-      while (e < ne_ && !(edge_[e][0] == i && edge_[e][1] == j)) ++e;
-      if (e == ne_) {
-        edge_[ne_] = {i, j};
-        rest_len_[ne_] = (rest_of(i) - rest_of(j)).norm();
-        k_[ne_] = 0.0;
-        ++ne_;
-      }
+      const int e = refined_edge(tr[k], tr[(k + 1) % 3]);
       k_[e] += p_.stiffness * (area / 2.0) / (rest_len_[e] * rest_len_[e]);
     }
   }
 }
 
-// Border: refined vertices on the boundary of the patch (edges used by one selected global
-// triangle) and pinned ones follow the global cloth.
+// Border: refined vertices on the boundary of the patch (global edges used by one selected
+// triangle: their midpoint's use count is 1) and pinned ones follow the global cloth.
 void LocalPatch::mark_border(int ns) noexcept {
   for (int i = 0; i < ns; ++i) {
     const auto& g = gt_[sel_[i]];
     for (int k = 0; k < 3; ++k) {
       const int a = g[k], b = g[(k + 1) % 3];
-      int uses = 0;
-      for (int j = 0; j < ns; ++j) {
-        const auto& h = gt_[sel_[j]];
-        for (int l = 0; l < 3; ++l)
-          uses += (h[l] == a && h[(l + 1) % 3] == b) || (h[l] == b && h[(l + 1) % 3] == a);
-      }
-      if (uses == 1) {
-        border_[patch_vertex(a, a)] = border_[patch_vertex(b, b)] = border_[patch_vertex(a, b)] = 1;
-      }
+      const int mid = patch_vertex(a, b);  // found: subdivide() made it
+      if (uses_[mid] == 1) border_[patch_vertex(a, a)] = border_[patch_vertex(b, b)] = border_[mid] = 1;
     }
   }
   for (int v = 0; v < nv_; ++v)

@@ -67,8 +67,12 @@ class LocalPatch {
   double spring_scale() const { return spring_scale_; }
   int triangles() const { return nt_; }
   int vertices() const { return nv_; }
-  /// Builds the patch around `c` from snapshot `s` (interior state from the snapshot).
-  void rebuild(const ClothSnapshot& s, const Vec3& c) noexcept;
+  /// Patch vertex v follows the global cloth (on the patch's boundary, or pinned).
+  bool border(int v) const { return border_[v] != 0; }
+  /// Builds the patch around `c` from snapshot `s` (interior state from the snapshot), from
+  /// the triangles the snapshot lists for `finger` (ClothSnapshot::near_triangles): its cost
+  /// grows with the patch, not with the mesh.
+  void rebuild(const ClothSnapshot& s, int finger, const Vec3& c) noexcept;
   void clear() noexcept { nt_ = nv_ = 0; }
   /// Advances the patch by one haptic period to loop time `now`. While touching, on every
   /// substep the normal spring and the Coulomb friction spring to `anchor` (carried by the
@@ -90,8 +94,9 @@ class LocalPatch {
     Vec3 q0 = Vec3::Zero(), n0 = Vec3::UnitZ();
   };
   // rebuild()
-  int select(const ClothSnapshot& s, const Vec3& c) noexcept;
+  int select(const ClothSnapshot& s, int finger, const Vec3& c) noexcept;
   int patch_vertex(int a, int b) noexcept;
+  int refined_edge(int i, int j) noexcept;
   void subdivide(int ns) noexcept;
   void springs() noexcept;
   void mark_border(int ns) noexcept;
@@ -121,6 +126,8 @@ class LocalPatch {
   std::vector<double> rest_len_, k_;
   std::vector<int> sel_;                    // selected global triangles
   std::vector<std::array<int, 3>> key_;     // hash table (ga, gb, patch vertex)
+  std::vector<std::array<int, 3>> edge_key_;  // hash table (i, j, refined edge)
+  std::vector<int> uses_;                   // per midpoint vertex: selected triangles on its edge
   double edge_mean_ = 0.0;
   int substeps_ = 32;                       // this build's substeps per tick
   double spring_scale_ = 1.0;               // < 1: springs softened for stability

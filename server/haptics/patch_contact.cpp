@@ -38,7 +38,7 @@ void PatchContact::touch(const ClothSnapshot& s, double now, double, const Finge
   if (s.time < 0.0 || !s.near[f]) return separate(P);
   LocalPatch& patch = *patch_[f];
   if (!patch.active() || (c - patch.centre()).norm() > 0.5 * patch.params_radius()) {
-    patch.rebuild(s, c);
+    patch.rebuild(s, f, c);
     ++rebuilds_;
     softened_ += patch.spring_scale() < 1.0;
   }

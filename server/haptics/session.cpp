@@ -26,9 +26,9 @@ using devices::mono_now;
 using devices::to_timespec;
 
 namespace {
-ClothSnapshot sized_snapshot(int vertices) {
+ClothSnapshot sized_snapshot(int vertices, int patch_candidates) {
   ClothSnapshot s;
-  s.resize(vertices);
+  s.resize(vertices, patch_candidates);
   return s;
 }
 }  // namespace
@@ -46,9 +46,11 @@ Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& 
   gate_ = std::make_unique<devices::SafetyGate>(dev_.info(), sc_.gate);
   // Nor does it render more than the gate's limit: the cloth gets no more either (third law).
   sc_.finger.max_force = gate_->max_force();
-  snap_ = std::make_unique<TripleBuffer<ClothSnapshot>>(sized_snapshot(model.num_vertices()));
-  rep_ = std::make_unique<TripleBuffer<HapticReport>>(HapticReport{});
   const Rendering mode = rendering(sc_.local_patch, sc_.local_model);
+  // The patch model's candidates: room for 4x the triangles a patch takes.
+  const int candidates = mode == Rendering::Patch ? 4 * std::max(1, sc_.patch.max_triangles) : 0;
+  snap_ = std::make_unique<TripleBuffer<ClothSnapshot>>(sized_snapshot(model.num_vertices(), candidates));
+  rep_ = std::make_unique<TripleBuffer<HapticReport>>(HapticReport{});
   sim_ = std::make_unique<SimWorker>(model, cfg, std::move(solver), start, dev_.info().fingers,
                                      sc_.finger, sc_.coupling, mode, *snap_, *rep_);
   loop_ = std::make_unique<HapticLoop>(model.triangles, model.num_vertices(), dev_, *gate_, sc_.finger,
@@ -63,6 +65,7 @@ Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& 
     // The patch reaches the force-spreading kernel's radius (2 mean edges), at least 2 fingertip
     // radii: enough triangles to hold the dent, few enough to step 32 times a millisecond.
     if (!(sc_.patch.radius > 0.0)) p.radius = std::max(2.0 * sc_.finger.radius, sim_->kernel_radius());
+    sim_->set_patch_radius(p.radius);
     loop_->enable_local_patch(model.rest_positions, model.pinned, p);
   }
 }
@@ -200,6 +203,7 @@ SessionReport Session::report() const {
   r.narrow_phase_skipped = loop_->narrow_phase_skipped();
   r.patch_rebuilds = loop_->patch_rebuilds();
   r.patch_softened = loop_->patch_softened();
+  r.patch_candidate_overflows = sim_->patch_candidate_overflows();
   r.device_errors = loop_->device_errors();
   r.late_ticks = loop_->late_ticks();
   r.passivity_ticks = loop_->passivity().stats().active_ticks;
@@ -233,7 +237,8 @@ std::string SessionReport::to_text() const {
      << " mm inside a fingertip\n" << std::setprecision(1);
   if (patch_rebuilds > 0)
     os << "local patch      " << patch_rebuilds << " builds, " << patch_softened
-       << " with springs softened to stay stable (material stiffer than max_substeps integrate)\n";
+       << " with springs softened to stay stable (material stiffer than max_substeps integrate), "
+       << patch_candidate_overflows << " snapshots with more candidate triangles than room\n";
   os << "late ticks       " << late_ticks << " (their motion caught up over the ticks missed); "
      << "passivity control on " << passivity_ticks << " ticks, coupling's largest deficit "
      << std::setprecision(2) << passivity_deficit * 1e6 << " uJ\n" << std::setprecision(1);
@@ -259,6 +264,7 @@ std::string SessionReport::to_json() const {
   j["narrow_phase_skipped"] = narrow_phase_skipped;
   j["patch_rebuilds"] = patch_rebuilds;
   j["patch_softened"] = patch_softened;
+  j["patch_candidate_overflows"] = patch_candidate_overflows;
   j["device_errors"] = device_errors;
   j["contact_samples"] = contact_samples;
   j["contact_revisions"] = contact_revisions;

@@ -47,6 +47,8 @@ struct SessionReport {
   std::uint64_t contact_samples = 0, contact_revisions = 0;
   double max_penetration = 0.0;
   std::uint64_t patch_rebuilds = 0, patch_softened = 0;  ///< local patch builds (4.2)
+  /// Snapshots that listed fewer patch candidates than a finger had (SimWorker).
+  std::uint64_t patch_candidate_overflows = 0;
   /// Ticks more than half a period late, and the coupling's passivity controller (passivity.hpp):
   /// ticks it added damping on, and the most energy the coupling gave beyond passivity (J).
   std::uint64_t late_ticks = 0, passivity_ticks = 0;

@@ -65,7 +65,7 @@ SimWorker::SimWorker(const cloth::ClothModel& model, const cloth::IntegratorConf
                                                contact_params(fp_, cp_.margin), integ_);
   }
   normals_.assign(model_.num_vertices(), Vec3::UnitZ());
-  mine_.resize(model_.num_vertices());
+  mine_.resize(model_.num_vertices(), static_cast<int>(to_haptics.back().near_triangles[0].size()));
 }
 
 void SimWorker::vertex_normals() {
@@ -109,6 +109,37 @@ void SimWorker::mark_near(const HapticReport& r) {
     const Vec3& p = r.finger[fi].position;
     snap.near[fi] = r.time >= 0.0 && r.finger[fi].present && (p.array() >= lo.array() - reach).all() &&
                     (p.array() <= hi.array() + reach).all();
+  }
+  if (patch_radius_ > 0.0) mark_patch_candidates(r, snap);
+}
+
+// The patch model's candidates per finger: the global triangles with a corner within the patch
+// radius of anywhere the fingertip can be before the next snapshot (its travel at its present
+// speed over two steps, plus the contact margin), in index order, up to the snapshot's room
+// (the rest counted). One pass over the triangles here, on the simulation thread, so the
+// haptic thread's patch builds cost what the patch holds, not what the mesh holds.
+void SimWorker::mark_patch_candidates(const HapticReport& r, ClothSnapshot& snap) {
+  const double dt = integ_.config().dt;
+  for (int f = 0; f < fingers_; ++f) {
+    std::vector<int>& out = snap.near_triangles[f];
+    const int room = static_cast<int>(out.size());
+    int n = 0;
+    if (snap.near[f]) {
+      const Vec3& c = r.finger[f].position;
+      const double reach = patch_radius_ + 2.0 * dt * r.finger[f].velocity.norm() + cp_.margin;
+      const double reach2 = reach * reach;
+      bool overflow = false;
+      for (int t = 0; t < static_cast<int>(tris_.size()); ++t) {
+        const auto& g = tris_[t];
+        bool in = false;
+        for (int k = 0; k < 3; ++k) in = in || (s_.x[g[k]] - c).squaredNorm() < reach2;
+        if (!in) continue;
+        if (n < room) out[n++] = t;
+        else overflow = true;
+      }
+      patch_overflows_ += overflow;
+    }
+    snap.near_count[f] = n;
   }
 }
 

@@ -54,6 +54,12 @@ class SimWorker {
   /// Direct coupling's contact (nullptr with local patches).
   const FingertipContact* fingertips() const { return tips_.get(); }
   double kernel_radius() const { return kernel_r_; }
+  /// The patch model's radius (0: no patch model): each snapshot then lists, per finger, the
+  /// triangles a patch around the fingertip can take (ClothSnapshot::near_triangles).
+  void set_patch_radius(double radius) { patch_radius_ = radius; }
+  /// Snapshots in which a finger had more patch candidates than their room (the patch was
+  /// built from the first ones, in index order).
+  std::uint64_t patch_candidate_overflows() const { return patch_overflows_; }
   const Histogram& step_us() const { return step_us_; }
   std::uint64_t steps() const { return steps_; }
   /// Sum of the contact forces on the cloth in the last step, N.
@@ -62,6 +68,7 @@ class SimWorker {
  private:
   std::array<FingerTarget, kMaxFingers> fingertip_targets(const HapticReport& r, double now) const;
   void mark_near(const HapticReport& r);
+  void mark_patch_candidates(const HapticReport& r, ClothSnapshot& snap);
   void vertex_normals();
   void hand_over_response();
 
@@ -83,6 +90,8 @@ class SimWorker {
   ClothSnapshot mine_;
   Histogram step_us_;
   std::uint64_t steps_ = 0;
+  double patch_radius_ = 0.0;
+  std::uint64_t patch_overflows_ = 0;
 };
 
 }  // namespace hapticloth::haptics
