@@ -186,38 +186,57 @@ def run_node_client(url: str, *args) -> dict:
     return out
 
 
+def live_session(tmp_path: Path, clients) -> dict:
+    """A 12 s real-time session with the live view on a free port; `clients(url)` runs once the
+    session is under way. Returns the server's JSON summary."""
+    port = free_port(socket.SOCK_STREAM)
+    with Server("--duration", "12", "--json", "--no-zenoh", "--no-lcm-log",
+                "--foxglove", f"127.0.0.1:{port}", cwd=tmp_path) as srv:
+        wait_until(lambda: srv.p.poll() is not None or port_open(port), 120.0, step=0.1)
+        clients(f"ws://127.0.0.1:{port}")
+        assert srv.finish(120) == 0, srv.stderr
+    summary = json.loads(srv.stdout.strip().splitlines()[-1])
+    assert summary["foxglove"]["port"] == port
+    return summary
+
+
+def port_open(port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        return s.connect_ex(("127.0.0.1", port)) == 0
+
+
 def test_foxglove_client_sees_the_cloth_and_twenty_clients_come_and_go(tmp_path):
     """--foxglove: Foxglove's own client negotiates the subprotocol the SDK's server offers,
     subscribes to /cloth and decodes a SceneUpdate with the advertised schema: the scene's
-    mesh. Then 20 clients connect and drop in a row; the haptic loop misses no more deadlines
-    than the platform's own timer, measured right after, wakes late."""
-    port = free_port(socket.SOCK_STREAM)
-    with Server("--duration", "12", "--json", "--no-zenoh", "--foxglove", f"127.0.0.1:{port}",
-                cwd=tmp_path, lcm_log=tmp_path / "run.lcm") as srv:
-        srv.wait_ready(120)
-        url = f"ws://127.0.0.1:{port}"
-        seen = run_node_client(url, "cloth")
-        assert seen["subprotocol"] == "foxglove.sdk.v1"
-        assert seen["topics"] == sorted(SCHEMAS)
-        assert seen["schemas"]["/cloth"] == ["protobuf", "foxglove.SceneUpdate", "protobuf"]
-        assert (seen["vertices"], seen["colors"], seen["triangles"]) == (VERTICES, VERTICES, TRIANGLES)
-        churn = run_node_client(url, "churn", "20")
-        assert churn == {"clients": 20, "saw_cloth": 20}
-        assert srv.finish(120) == 0, srv.stderr
-    summary = json.loads(srv.stdout.strip().splitlines()[-1])
-    ticks = summary["haptic_ticks"]
-    # The platform's own timer right after, for as many ticks at the haptic thread's scheduling
-    # (this machine wakes a thread over 1 ms late now and then, idle or not): a haptic tick
-    # misses its deadline when such a wake-up hits it. Twice the platform's count, plus three.
-    t = subprocess.run([str(program("hapticloth-bench")), "timer", "--ticks", str(ticks), "--json"],
-                       capture_output=True, text=True, timeout=ticks / 1000 + 60)
+    mesh. Then 20 clients connect and drop in a row, and the haptic loop misses no more
+    deadlines than the same session without clients does, beside the platform's own timer."""
+    seen = {}
+
+    def connect(url):
+        seen.update(run_node_client(url, "cloth"))
+        seen["churn"] = run_node_client(url, "churn", "20")
+
+    on = live_session(tmp_path, connect)
+    assert seen["subprotocol"] == "foxglove.sdk.v1"
+    assert seen["topics"] == sorted(SCHEMAS)
+    assert seen["schemas"]["/cloth"] == ["protobuf", "foxglove.SceneUpdate", "protobuf"]
+    assert (seen["vertices"], seen["colors"], seen["triangles"]) == (VERTICES, VERTICES, TRIANGLES)
+    assert seen["churn"] == {"clients": 20, "saw_cloth": 20}
+    assert on["foxglove"]["messages"]["/cloth"] > 0
+    # The baseline: the same session with nobody connecting, then the platform's own timer for
+    # as many ticks at the haptic thread's scheduling. This machine wakes a thread over 1 ms
+    # late now and then, idle or not, and a tick misses its deadline when such a wake-up hits
+    # it: both runs miss some. The clients may add no more than the two baselines' spread.
+    off = live_session(tmp_path, lambda url: None)
+    t = subprocess.run([str(program("hapticloth-bench")), "timer", "--ticks", str(off["haptic_ticks"]), "--json"],
+                       capture_output=True, text=True, timeout=off["haptic_ticks"] / 1000 + 60)
     platform = json.loads(t.stdout.strip().splitlines()[-1])
-    allowed = 3 + 2 * platform["over_1ms"]
-    print(f"20 clients: {summary['missed_deadlines']} missed deadlines in {ticks} ticks, period error "
-          f"p99 {summary['period_error_us']['p99']} us; platform right after: {platform['over_1ms']} "
-          f"wake-ups over 1 ms, p99 {platform['p99_us']:.1f} us")
-    assert summary["missed_deadlines"] <= allowed, (summary["missed_deadlines"], ticks, platform)
-    assert summary["foxglove"]["port"] == port and summary["foxglove"]["messages"]["/cloth"] > 0
+    print(f"20 clients: {on['missed_deadlines']} missed deadlines in {on['haptic_ticks']} ticks, period "
+          f"error p99 {on['period_error_us']['p99']} us; no clients: {off['missed_deadlines']} in "
+          f"{off['haptic_ticks']}, p99 {off['period_error_us']['p99']} us; platform right after: "
+          f"{platform['over_1ms']} wake-ups over 1 ms, p99 {platform['p99_us']:.1f} us")
+    allowed = 2 * max(off["missed_deadlines"], platform["over_1ms"]) + 5
+    assert on["missed_deadlines"] <= allowed, (on["missed_deadlines"], off["missed_deadlines"], platform)
 
 
 def test_bad_foxglove_options_are_named(tmp_path):
