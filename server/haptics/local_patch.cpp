@@ -71,26 +71,41 @@ int LocalPatch::select(const ClothSnapshot& s, int finger, const Vec3& c) noexce
   return ns;
 }
 
-// The patch vertex of global vertex a (a == b) or of the midpoint of global edge (a, b): found
-// in, or on first use added to, an open-addressing hash table on (a, b).
-int LocalPatch::patch_vertex(int a, int b) noexcept {
+namespace {
+// The value of unordered pair (a, b) in an open-addressing hash table of (a, b, value) entries
+// (a < 0: empty), or, if it is not there, `next` stored for it (`added` says which). The
+// tables hold 4x their capacity, so a free entry is always found.
+int find_or_add(std::vector<std::array<int, 3>>& table, int a, int b, int next, bool& added) noexcept {
   if (a > b) std::swap(a, b);
-  const int cap = static_cast<int>(key_.size());
-  unsigned h = (static_cast<unsigned>(a) * 73856093u) ^ (static_cast<unsigned>(b) * 19349663u);
+  const int cap = static_cast<int>(table.size());
+  const unsigned h = (static_cast<unsigned>(a) * 73856093u) ^ (static_cast<unsigned>(b) * 19349663u);
+  added = false;
   for (int i = 0; i < cap; ++i) {
-    auto& e = key_[(h + i) % cap];
+    auto& e = table[(h + i) % cap];
     if (e[0] == a && e[1] == b) return e[2];
     if (e[0] < 0) {
-      e = {a, b, nv_};
-      ga_[nv_] = a;
-      gb_[nv_] = b;
-      border_[nv_] = 0;
-      uses_[nv_] = 0;
-      m_[nv_] = 0.0;
-      return nv_++;
+      e = {a, b, next};
+      added = true;
+      return next;
     }
   }
-  return 0;  // unreachable: the table holds 4x the capacity
+  return 0;  // unreachable
+}
+}  // namespace
+
+// The patch vertex of global vertex a (a == b) or of the midpoint of global edge (a, b).
+int LocalPatch::patch_vertex(int a, int b) noexcept {
+  bool added;
+  const int v = find_or_add(key_, a, b, nv_, added);
+  if (added) {
+    ga_[v] = std::min(a, b);
+    gb_[v] = std::max(a, b);
+    border_[v] = 0;
+    uses_[v] = 0;
+    m_[v] = 0.0;
+    ++nv_;
+  }
+  return v;
 }
 
 // Each selected global triangle into four, at its edge midpoints. A midpoint's use count is
@@ -111,24 +126,17 @@ void LocalPatch::subdivide(int ns) noexcept {
   }
 }
 
-// The refined edge (i, j): found in, or on first use added to, an open-addressing hash table,
-// with its rest length.
+// The refined edge (i, j), with its rest length when first met.
 int LocalPatch::refined_edge(int i, int j) noexcept {
-  if (i > j) std::swap(i, j);
-  const int cap = static_cast<int>(edge_key_.size());
-  unsigned h = (static_cast<unsigned>(i) * 73856093u) ^ (static_cast<unsigned>(j) * 19349663u);
-  for (int n = 0; n < cap; ++n) {
-    auto& e = edge_key_[(h + n) % cap];
-    if (e[0] == i && e[1] == j) return e[2];
-    if (e[0] < 0) {
-      e = {i, j, ne_};
-      edge_[ne_] = {i, j};
-      rest_len_[ne_] = (0.5 * (rest_[ga_[i]] + rest_[gb_[i]]) - 0.5 * (rest_[ga_[j]] + rest_[gb_[j]])).norm();
-      k_[ne_] = 0.0;
-      return ne_++;
-    }
+  bool added;
+  const int e = find_or_add(edge_key_, i, j, ne_, added);
+  if (added) {
+    edge_[e] = {std::min(i, j), std::max(i, j)};
+    rest_len_[e] = (0.5 * (rest_[ga_[i]] + rest_[gb_[i]]) - 0.5 * (rest_[ga_[j]] + rest_[gb_[j]])).norm();
+    k_[e] = 0.0;
+    ++ne_;
   }
-  return 0;  // unreachable: the table holds 4x the capacity
+  return e;
 }
 
 // Rest geometry, masses (area / 3 per corner) and springs along every refined edge, each edge
