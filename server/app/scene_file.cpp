@@ -283,7 +283,7 @@ void load_physics(const TomlFile& f, const toml::table& ph, Scene& s) {
 void load_integrator(const TomlFile& f, const toml::table& it, Scene& s) {
   f.only_keys(it, "integrator", {"dt", "alpha", "solver", "jacobian", "pcg_tolerance",
                                  "pcg_max_iterations", "pcg_float_matrix", "max_halvings",
-                                 "explosion_ratio"});
+                                 "explosion_ratio", "threads"});
   auto& c = s.integrator;
   c.dt = f.number(it, "integrator", "dt", c.dt);
   if (!(c.dt > 0.0)) f.fail(it.get("dt"), "integrator.dt", "must be > 0 (s)");
@@ -312,6 +312,9 @@ void load_integrator(const TomlFile& f, const toml::table& it, Scene& s) {
   c.explosion_ratio = f.number(it, "integrator", "explosion_ratio", c.explosion_ratio);
   if (!(c.explosion_ratio > 0.0))
     f.fail(it.get("explosion_ratio"), "integrator.explosion_ratio", "must be > 0");
+  c.assembly_threads = static_cast<int>(f.integer(it, "integrator", "threads", c.assembly_threads));
+  if (c.assembly_threads < 1 || c.assembly_threads > 2)
+    f.fail(it.get("threads"), "integrator.threads", "must be 1 or 2 (threads of the element assembly)");
 }
 
 }  // namespace

@@ -264,15 +264,13 @@ double Integrator::assemble_elements(const ClothState& s, double h) {
   const int* const row_stride = sys_.row_stride.data();
   const Vec3* const X = s.x.data();
   const Vec3* const Vel = s.v.data();
-  double e_el = 0.0;
   const auto& els = model_.elements;
-  const int ne = static_cast<int>(els.size());
-  for (int t = 0; t < ne; ++t) {
+  const auto element = [&](int t) -> double {
     const ElementRest& e = els[t];
     ElementFibres f;
     element_fibres(e, X, Vel, f);
     ElementStress st;
-    e_el += element_stress<kViscous>(mat, eta, e.area, f, st);
+    const double energy = element_stress<kViscous>(mat, eta, e.area, f, st);
     double Fu[3], Fv[3];
     element_forces(e.area, f, st, Fu, Fv);
     // Factored Jacobian (see ElementEval), with c_f = A g_f / q_f for each fibre:
@@ -304,7 +302,23 @@ double Integrator::assemble_elements(const ClothState& s, double h) {
     double Ps[9], Qs[9], Ws[9];
     system_factors<kViscous>(ah, aahh, eta, e.area, f, Pf, Qf, W, Ps, Qs, Ws);
     scatter(e, free_index, sys_.block_offset[t], row_stride, gu, gv, Ps, Qs, Ws, rhs, Aval);
+    return energy;
+  };
+  double e_el = 0.0;
+  if (!pool_) {
+    for (int t = 0; t < static_cast<int>(els.size()); ++t) e_el += element(t);
+    return e_el;
   }
+  // Two threads: the parts at once (disjoint rows), then the separators; the energy summed in
+  // the same order whichever thread took a part.
+  auto part = [&](int p) {
+    double sum = 0.0;
+    for (int t : partition_.parts[p]) sum += element(t);
+    part_energy_[p] = sum;
+  };
+  pool_->run(static_cast<int>(partition_.parts.size()), part);
+  for (double e : part_energy_) e_el += e;
+  for (int t : partition_.separators) e_el += element(t);
   return e_el;
 }
 
@@ -317,6 +331,7 @@ void IntegratorConfig::validate() const {
   if (!gravity.allFinite()) bad("gravity", "must be finite");
   if (!(air_damping >= 0.0) || !std::isfinite(air_damping)) bad("air_damping", "must be >= 0");
   if (max_halvings < 0 || max_halvings > 20) bad("max_halvings", "must be in [0, 20]");
+  if (assembly_threads < 1 || assembly_threads > 2) bad("threads", "must be 1 or 2");
   if (!(explosion_ratio > 0.0)) bad("explosion_ratio", "must be > 0");
 }
 
@@ -330,6 +345,13 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
   if (cfg_.proxies < 0 || cfg_.proxies > 16)
     throw std::invalid_argument("integrator.proxies: must be in [0, 16]");
   sys_ = build_pattern(model_, cfg_.proxies);
+  if (cfg_.assembly_threads > 1 && model_.num_triangles() >= kMinParallelElements) {
+    // Four parts for two threads: whichever thread is free takes the next, so a helper that
+    // wakes late (or is preempted) costs part of a part, not half the assembly.
+    partition_ = partition_elements(model_.elements, model_.rest_positions, 4);
+    part_energy_.assign(partition_.parts.size(), 0.0);
+    pool_ = std::make_unique<WorkerPool>();
+  }
   A_ = sys_.csr;
   proxies_.assign(cfg_.proxies, ProxyNode{});
   const int n = A_.n;

@@ -7,8 +7,10 @@
 
 #include <Eigen/Core>
 
+#include "cloth/element_partition.hpp"
 #include "cloth/model.hpp"
 #include "cloth/solver.hpp"
+#include "cloth/worker_pool.hpp"
 
 namespace hapticloth::cloth {
 
@@ -23,6 +25,9 @@ struct IntegratorConfig {
                                   ///< above which a step is an energy explosion
   int proxies = 0;                ///< massless proxy nodes solved with the cloth (fingertips)
   int max_contact_revisions = 16; ///< re-solves of a step whose contact set changed
+  /// Threads of the element assembly: 1, or 2 (a helper thread shares it with the stepping
+  /// thread; meshes under kMinParallelElements stay on one).
+  int assembly_threads = 1;
 
   /// Throws std::invalid_argument naming the offending field.
   void validate() const;
@@ -90,6 +95,10 @@ struct StepTiming {
 };
 
 enum class StepOutcome { Accepted, Restored };
+
+/// Below this many elements the assembly stays on one thread: waking the helper costs about
+/// what it saves.
+inline constexpr int kMinParallelElements = 2000;
 
 class Integrator {
  public:
@@ -187,6 +196,10 @@ class Integrator {
   double last_h_ = 0.0; // the last (sub)step solved
   std::vector<Eigen::VectorXd> response_;  // proxy_response(): A^-1 e per proxy dof (warm starts)
   Eigen::VectorXd unit_;
+  // Two-thread assembly (assembly_threads 2): the element parts, their energies, the helper.
+  ElementPartition partition_;
+  std::vector<double> part_energy_;
+  std::unique_ptr<WorkerPool> pool_;
 };
 
 }  // namespace hapticloth::cloth

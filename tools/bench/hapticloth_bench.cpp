@@ -1,5 +1,5 @@
 // hapticloth-bench: benchmarks that print machine-readable results.
-//   hapticloth-bench step --scene FILE [--solver cholmod|pcg] [--dt S] [--alpha A] [--steps N]
+//   hapticloth-bench step --scene FILE [--solver cholmod|pcg] [--dt S] [--alpha A] [--steps N] [--threads 1|2]
 //                         [--pinch] --json
 //   hapticloth-bench haptic [--scene FILE] [--duration S] --json
 //   hapticloth-bench haptic --subscribers N [--duration S] [--cloth-rate HZ] --json
@@ -128,6 +128,9 @@ int main(int argc, char** argv) {
   step->add_option("--pcg-tolerance", tol, "relative residual of the PCG solve")
       ->check(opts::number_in(0.0, 1.0, true));
   step->add_option("--steps", steps, "number of steps from the rest state")->check(CLI::Range(1L, 100000000L));
+  int threads = 0;
+  step->add_option("--threads", threads, "threads of the element assembly, 1 or 2 (default: the scene's)")
+      ->check(CLI::Range(1, 2));
   step->add_flag("--json", json, "one JSON object on stdout");
   bool pinch = false;
   step->add_flag("--pinch", pinch, "both fingertips pinch the cloth's middle (direct coupling, "
@@ -258,6 +261,7 @@ int main(int argc, char** argv) {
     if (dt > 0) scene.integrator.dt = dt;
     if (alpha > 0) scene.integrator.alpha = alpha;
     if (tol > 0) scene.pcg.tolerance = tol;
+    if (threads > 0) scene.integrator.assembly_threads = threads;
     scene.integrator.validate();
     if (pinch) {
       std::cout << bench::pinch_step(scene, steps / scene.haptics.haptic_rate).dump(json ? -1 : 1) << "\n";
