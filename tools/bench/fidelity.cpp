@@ -121,6 +121,13 @@ json fidelity(const FidelityOptions& opt) {
   return out;
 }
 
+// The median integrator time of the steps solved 1, 2, 3 and 4 or more times (0 where none).
+json by_solves_p50(const std::array<haptics::Histogram, 4>& h) {
+  json out = json::array();
+  for (const auto& x : h) out.push_back(x.count() ? x.quantile(0.5) : 0.0);
+  return out;
+}
+
 json pinch_step(const app::Scene& scene, double seconds) {
   const cloth::ClothModel model = app::build_model(scene);
   haptics::SessionConfig sc = scene.haptics;
@@ -153,6 +160,7 @@ json pinch_step(const app::Scene& scene, double seconds) {
   // Steps by how many solves they took (1, 2, 3, 4 or more), in the squeeze (the first 0.1 s)
   // and in the hold after it: the step's tail comes from the steps solved more than once.
   std::array<std::array<long, 4>, 2> by_solves{};
+  std::array<haptics::Histogram, 4> integrator_us_by_solves;
   rig.session->run_stepped(seconds, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker& w) {
     ++ticks;
     both += h.last_report().finger[0].in_contact && h.last_report().finger[1].in_contact;
@@ -162,7 +170,9 @@ json pinch_step(const app::Scene& scene, double seconds) {
     iterations.add(t.iterations);
     integrator_us.add(1e3 * t.total_ms);
     const std::uint64_t rev = w.integrator().events().contact_revisions;
-    by_solves[ticks > 100][std::min<std::uint64_t>(rev - revisions, 3)]++;
+    const auto solved = std::min<std::uint64_t>(rev - revisions, 3);
+    by_solves[ticks > 100][solved]++;
+    integrator_us_by_solves[solved].add(1e3 * t.total_ms);
     revisions = rev;
   });
   solves = steps + rig.session->report().contact_revisions;
@@ -180,6 +190,7 @@ json pinch_step(const app::Scene& scene, double seconds) {
           {"solves_per_step", static_cast<double>(solves) / std::max<std::uint64_t>(1, steps)},
           {"contact_revisions", rep.contact_revisions},
           {"steps_by_solves", {{"squeeze", by_solves[0]}, {"hold", by_solves[1]}}},
+          {"integrator_p50_us_by_solves", by_solves_p50(integrator_us_by_solves)},
           {"max_penetration_mm", rep.max_penetration * 1e3}};
 }
 
