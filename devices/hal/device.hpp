@@ -3,7 +3,8 @@
 // Lifecycle (ros2_control style):  configure() -> activate() -> read()/write() at the loop rate
 // -> deactivate(). configure/activate/deactivate run off the real-time path: they may allocate
 // and return an error message. read() and write() run on the real-time path: they return a
-// status, never throw, never allocate and never block.
+// status, never throw, never allocate and never block. A device that streams on its own clock
+// may also pace the loop (paces_loop, await_sample: the only blocking call).
 //
 // Device frame: right-handed, metres, origin at the workspace centre as the driver defines it;
 // the server maps it to the scene with the scene's [device] axes and origin
@@ -125,6 +126,17 @@ class Device {
   virtual Status read(double now, DeviceState& state) noexcept = 0;
   /// Real-time path. The command has already passed the SafetyGate.
   virtual Status write(double now, const DeviceCommand& cmd) noexcept = 0;
+
+  /// Whether the device streams its samples on its own clock and can pace the loop (a tick
+  /// per sample: DeviceClock). False for a device the loop polls (mock, replay).
+  virtual bool paces_loop() const { return false; }
+  /// Real-time path, for a device that paces the loop: blocks until a sample is ready to read()
+  /// (true) or until `until` (CLOCK_MONOTONIC, s; false). The one call of the interface that
+  /// blocks, by design; a device that does not pace returns false at once.
+  virtual bool await_sample(double until) noexcept {
+    (void)until;
+    return false;
+  }
 
   virtual const DeviceCounters& counters() const = 0;
 };

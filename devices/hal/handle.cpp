@@ -86,4 +86,8 @@ Status DeviceHandle::write(double now, const DeviceCommand& c) noexcept {
   return after_driver(dev_->write(now, c), state_, failed_);
 }
 
+bool DeviceHandle::await_sample(double until) noexcept {
+  return state_ == Lifecycle::Active && dev_->await_sample(until);
+}
+
 }  // namespace hapticloth::devices

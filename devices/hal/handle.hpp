@@ -27,6 +27,8 @@ class DeviceHandle {
   /// the handle to Failed.
   Status read(double now, DeviceState& s) noexcept;
   Status write(double now, const DeviceCommand& c) noexcept;
+  /// Real-time path: the driver's await_sample while Active; false at once otherwise.
+  bool await_sample(double until) noexcept;
 
   Device& device() { return *dev_; }
   const Device& device() const { return *dev_; }

@@ -5,9 +5,12 @@
 #include <cmath>
 #include <cstring>
 #include <fcntl.h>
+#include <poll.h>
 #include <stdexcept>
 #include <sys/socket.h>
 #include <unistd.h>
+
+#include "hal/mono_clock.hpp"
 
 namespace hapticloth::devices {
 
@@ -192,6 +195,19 @@ Status UdpDevice::read(double now, DeviceState& state) noexcept {
   recorded_newest_ = false;
   state = state_;
   return Status::Ok;
+}
+
+bool UdpDevice::await_sample(double until) noexcept {
+  if (fd_ < 0) return false;
+  for (int guard = 0; guard < 1000; ++guard) {  // EINTR retries, bounded
+    const double left = until - mono_now();
+    pollfd p{fd_, POLLIN, 0};
+    const timespec ts = to_timespec(left > 0.0 ? left : 0.0);
+    const int rc = ::ppoll(&p, 1, &ts, nullptr);
+    if (rc > 0) return (p.revents & POLLIN) != 0;
+    if (rc == 0 || errno != EINTR) return false;
+  }
+  return false;
 }
 
 bool UdpDevice::send_force(double now, const DeviceCommand& cmd, bool& broken) noexcept {

@@ -61,6 +61,10 @@ class UdpDevice final : public Device {
   /// forces are sent as zero with kFlagFault set.
   Status write(double now, const DeviceCommand& cmd) noexcept override;
   const DeviceCounters& counters() const override { return counters_; }
+  /// The rig streams on its own clock: it can pace the loop (DeviceClock).
+  bool paces_loop() const override { return true; }
+  /// Real-time path: ppoll on the socket until a datagram is ready (true) or `until` passes.
+  bool await_sample(double until) noexcept override;
 
   /// The bound UDP port (after configure; useful with port 0).
   std::uint16_t local_port() const { return local_port_; }

@@ -24,7 +24,7 @@ struct Args {
   std::string scene_path;
   double duration = -1.0;
   bool headless = false, json = false, fast = false, no_rt = false;
-  std::string solver, device, script, record, replay, udp_bind;
+  std::string solver, device, script, record, replay, udp_bind, clock;
   double dt = -1.0, alpha = -1.0;
   std::string known_drivers;  // "mock|replay|..."
   transport::TransportOptions tr;
@@ -49,6 +49,9 @@ void add_run_options(CLI::App& cli, Args& a) {
   cli.add_option("--record", a.record, "mock/udp: write the device log (CSV) here")->check(opts::writable_file());
   cli.add_option("--replay", a.replay, "replay: the device log to play back");
   cli.add_option("--udp-bind", a.udp_bind, "udp: HOST:PORT to receive state packets on (default 127.0.0.1:47800)");
+  cli.add_option("--clock", a.clock, "real time: tick on the loop's own deadlines (loop) or on each of the "
+                                     "device's samples (device: udp); overrides [device] clock")
+      ->check(CLI::IsMember({"loop", "device"}));
   cli.add_flag("--fast", a.fast, "stepped clock: run the haptic session as fast as possible");
   cli.add_flag("--no-realtime", a.no_rt, "do not ask for SCHED_FIFO / mlockall");
 }
@@ -120,6 +123,10 @@ bool choose_device(const Args& a, app::Scene& scene) {
   if (!a.record.empty()) scene.device.record_path = a.record;
   if (!a.replay.empty()) scene.device.replay_path = a.replay;
   if (!a.udp_bind.empty()) scene.device.udp_bind = a.udp_bind;
+  if (!a.clock.empty()) scene.haptics.device_clock = a.clock == "device";
+  if (scene.haptics.device_clock && scene.device.driver != "udp")
+    throw app::ConfigError("clock \"device\" (--clock or the scene's [device] clock) needs a device "
+                           "that streams on its own clock (udp), not " + scene.device.driver);
   if (a.no_rt) scene.haptics.try_realtime = false;
   return true;
 }

@@ -112,7 +112,7 @@ Eigen::Vector3d vec3(const TomlFile& f, const toml::table& t, const std::string&
 void load_device(const TomlFile& f, const toml::table& t, const std::string& path, Scene& s) {
   f.only_keys(t, "device", {"driver", "fingers", "workspace_min", "workspace_max", "max_force",
                             "max_stiffness", "rate", "script", "record", "replay", "udp_bind",
-                            "origin", "axes"});
+                            "clock", "origin", "axes"});
   auto& d = s.device;
   s.has_device = true;
   d.driver = f.string(t, "device", "driver");
@@ -140,6 +140,14 @@ void load_device(const TomlFile& f, const toml::table& t, const std::string& pat
   if (t.get("record")) d.record_path = resolve(path, f.string(t, "device", "record"));
   if (t.get("replay")) d.replay_path = resolve(path, f.string(t, "device", "replay"));
   d.udp_bind = f.string(t, "device", "udp_bind", d.udp_bind);
+  const std::string clock = f.string(t, "device", "clock", "loop");
+  if (clock != "loop" && clock != "device")
+    f.fail(t.get("clock"), "device.clock", "must be \"loop\" (the haptic loop's own deadlines) or "
+                                           "\"device\" (a tick on each of the device's samples)");
+  s.haptics.device_clock = clock == "device";
+  if (s.haptics.device_clock && d.driver != "udp")
+    f.fail(t.get("clock"), "device.clock", "\"device\" needs a device that streams on its own "
+                                           "clock (driver udp), not " + d.driver);
   auto& m = s.haptics.mapping;
   m.origin = vec3(f, t, "device", "origin", m.origin);
   if (const toml::node* ax = t.get("axes")) {

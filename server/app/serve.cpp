@@ -231,7 +231,8 @@ std::string run(const Scene& scene, const ServeOptions& opt, const cloth::ClothM
     out << "scene            " << scene.name << " (" << model.num_triangles() << " triangles)\n";
     out << "device           " << dev.info().name << ", " << dev.info().fingers << " fingers, max "
         << dev.info().max_force << " N\n";
-    out << "clock            " << (opt.realtime ? "real time" : "stepped (as fast as possible)")
+    const char* ticks = scene.haptics.device_clock ? "real time, a tick on each device sample" : "real time";
+    out << "clock            " << (opt.realtime ? ticks : "stepped (as fast as possible)")
         << ", " << duration << " s after " << scene.preroll << " s preroll\n";
     for (const auto& s : p.stages) out << "stage            " << s << "\n";
     out.flush();

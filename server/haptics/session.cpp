@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "hal/cpu_latency.hpp"
+#include "hal/device_clock.hpp"
 #include "hal/mono_clock.hpp"
 #include "hal/platform_timer.hpp"
 
@@ -43,6 +44,9 @@ Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& 
   // The device renders no stiffer a spring stably: the coupling is clamped to its limit for
   // both surface models (the proxy's spring in the implicit step and the patch's contact).
   sc_.finger.stiffness = std::min(sc_.finger.stiffness, dev_.info().max_stiffness);
+  if (sc_.device_clock && !dev_.device().paces_loop())
+    throw std::invalid_argument("session: device.clock \"device\" needs a device that streams on "
+                                "its own clock (udp), not " + dev_.info().name);
   gate_ = std::make_unique<devices::SafetyGate>(dev_.info(), sc_.gate);
   // Nor does it render more than the gate's limit: the cloth gets no more either (third law).
   sc_.finger.max_force = gate_->max_force();
@@ -152,6 +156,7 @@ std::string Session::haptic_thread_priority() {
 
 // The haptic loop at its rate for `seconds` (or until a stop request): returns the ticks due.
 long Session::haptic_ticks(double seconds, double t_start, double period) {
+  if (sc_.device_clock) return device_paced_ticks(seconds, t_start, period);
   const long ticks = std::lround(seconds * sc_.haptic_rate);
   long elapsed = 0;
   for (long k = 0; k < ticks && !stop_requested(); ++k) {
@@ -171,18 +176,48 @@ long Session::haptic_ticks(double seconds, double t_start, double period) {
       k = std::min(due, ticks - 1);
     }
     elapsed = k + 1;
-    loop_->tick(woke - t_start);
-    account_tick();
-    for (auto* o : observers_)
-      o->on_haptic_tick(loop_->last_report(), loop_->device_state(), loop_->last_command());
-    if (k % 1000 == 999)
-      for (auto* o : observers_) o->on_loop_stats(r_.haptic);
-    const double done = mono_now();
-    r_.haptic.compute_us.add((done - woke) * 1e6);
-    ++r_.haptic.ticks;
+    const double done = haptic_tick(k, woke, t_start);
     if (done > t_start + (k + 1) * period) ++r_.haptic.missed_deadlines;  // overran its own period
   }
   return elapsed;
+}
+
+// The haptic loop on the device's samples for `seconds` (or until a stop request): a tick as
+// each sample arrives (DeviceClock). The period error is how far a tick's interval from the
+// last is from the period, between two ticks on samples (the device's own jitter and this
+// thread's wake-up together); a tick whose compute overruns the period is a missed deadline.
+// Ticks without a sample (the device silent for 1.5 periods) show as samples < ticks in the
+// device counters. Returns the ticks due in the time run.
+long Session::device_paced_ticks(double seconds, double t_start, double period) {
+  const devices::DeviceClock clock(period);
+  const double end = t_start + seconds;
+  double last = t_start - devices::DeviceClock::kEarliest * period;  // the first tick at t_start at the soonest
+  bool last_sampled = false;
+  for (long k = 0; !stop_requested(); ++k) {
+    const devices::DeviceClock::Tick t = clock.wait(dev_, last);
+    if (t.at >= end) break;
+    if (t.sampled && last_sampled) r_.haptic.period_error_us.add(std::abs(t.at - last - period) * 1e6);
+    last = t.at;
+    last_sampled = t.sampled;
+    const double done = haptic_tick(k, t.at, t_start);
+    if (done > t.at + period) ++r_.haptic.missed_deadlines;
+  }
+  return std::lround((std::min(mono_now(), end) - t_start) / period);
+}
+
+// One tick of the haptic loop at `woke` (CLOCK_MONOTONIC, s), its observers and its compute
+// time; returns when it was done.
+double Session::haptic_tick(long k, double woke, double t_start) {
+  loop_->tick(woke - t_start);
+  account_tick();
+  for (auto* o : observers_)
+    o->on_haptic_tick(loop_->last_report(), loop_->device_state(), loop_->last_command());
+  if (k % 1000 == 999)
+    for (auto* o : observers_) o->on_loop_stats(r_.haptic);
+  const double done = mono_now();
+  r_.haptic.compute_us.add((done - woke) * 1e6);
+  ++r_.haptic.ticks;
+  return done;
 }
 
 // The end (of the run, or a stop signal): zero force through the gate, at the loop rate.

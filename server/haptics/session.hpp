@@ -1,6 +1,6 @@
 // A haptic session: the global simulation and the 1 kHz haptic loop around one device.
-// Real time: two threads (haptic thread on absolute clock_nanosleep deadlines, SCHED_FIFO and
-// mlockall when permitted; simulation thread at its own rate) exchanging state through
+// Real time: two threads (haptic thread on absolute clock_nanosleep deadlines, or on the
+// device's samples with device_clock, SCHED_FIFO and mlockall when permitted; simulation thread at its own rate) exchanging state through
 // lock-free triple buffers. Stepped: both in one thread on a simulated clock, deterministic,
 // as fast as possible (tests, replays).
 #pragma once
@@ -35,6 +35,9 @@ struct SessionConfig {
   LocalModel local_model = LocalModel::Response;
   PatchParams patch;            ///< stiffness and density are taken from the material
   double spin_lead = 150e-6;    ///< s: the haptic thread sleeps to this before each deadline, then spins
+  /// Real time: tick on the device's samples (devices::DeviceClock) instead of the loop's own
+  /// deadlines. The device must stream on its own clock (paces_loop: udp).
+  bool device_clock = false;
 };
 
 struct SessionReport {
@@ -111,6 +114,8 @@ class Session {
   void sim_thread_loop(double t_start, const std::atomic<bool>& stop_flag);
   std::string haptic_thread_priority();
   long haptic_ticks(double seconds, double t_start, double period);
+  long device_paced_ticks(double seconds, double t_start, double period);
+  double haptic_tick(long k, double woke, double t_start);
   void realtime_wind_down(double t_start, double period);
   /// Most closing ticks that bring the force to zero through the gate's slew limit (the
   /// default 1000 N/s takes 5 ms from 5 N).

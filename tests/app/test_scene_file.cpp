@@ -106,6 +106,10 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
        {"haptics.local_model", "\"response\" or \"patch\""}},
       {"UnknownDeviceDriver", kScene + "\n[device]\ndriver = \"phantom\"\n", 18,
        {"key 'device.driver'", "unknown driver 'phantom'", "mock"}},
+      {"UnknownDeviceClock", kScene + "\n[device]\ndriver = \"udp\"\nclock = \"gps\"\n", 19,
+       {"key 'device.clock'", "\"loop\"", "\"device\""}},
+      {"DeviceClockOfAPolledDevice", kScene + "\n[device]\ndriver = \"mock\"\nclock = \"device\"\n", 19,
+       {"key 'device.clock'", "streams on its own clock", "not mock"}},
       {"AlphaOutOfRange", with_line(kScene, 14, "alpha = 0.3"), 14, {"key 'integrator.alpha'", "[0.5, 1]"}},
       {"ZeroTimeStep", with_line(kScene, 13, "dt = 0"), 13, {"key 'integrator.dt'", "must be > 0"}},
       {"UnknownSolver", with_line(kScene, 15, "solver = \"lu\""), 15, {"key 'integrator.solver'", "\"pcg\""}},
@@ -120,6 +124,12 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
   const auto path = (dir_ / "scene.toml").string();
   for (const BadFile& c : cases) expect_bad_file(c, path, [&] { scene(c.text); });
   EXPECT_NO_THROW(scene(kScene + "\n[haptics]\nlocal_patch = \"on\"\nlocal_model = \"patch\"\nkernel_radius = 0.02\n"));
+}
+
+TEST_F(SceneFileTest, DeviceClockKey) {
+  EXPECT_FALSE(scene(kScene + "\n[device]\ndriver = \"udp\"\n").haptics.device_clock);
+  EXPECT_FALSE(scene(kScene + "\n[device]\ndriver = \"udp\"\nclock = \"loop\"\n").haptics.device_clock);
+  EXPECT_TRUE(scene(kScene + "\n[device]\ndriver = \"udp\"\nclock = \"device\"\n").haptics.device_clock);
 }
 
 TEST_F(SceneFileTest, ErrorInMaterialNamesTheMaterialFile) {

@@ -263,3 +263,17 @@ TEST(Haptics, MultirateKeepsForceContinuousAt25Hz) {
               response.mean_force, naive.mean_force);
 }
 
+
+// The device clock (SessionConfig::device_clock) needs a device that streams on its own clock;
+// the mock device is polled, so the session refuses it, naming the key.
+TEST(Haptics, DeviceClockNeedsAStreamingDevice) {
+  haptics::SessionConfig sc;
+  sc.device_clock = true;
+  try {
+    Rig rig(drum(), one_finger({{0.0, Vec3(0.0, 0.0, 0.03)}}), sc);
+    FAIL() << "a mock device was accepted for the device clock";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("device.clock"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("mock"), std::string::npos) << e.what();
+  }
+}

@@ -80,6 +80,7 @@ BAD = [
     case("hapticloth-server", "--max-command-speed", "nan"),
     case("hapticloth-server", "--cloth-rate", "0"),
     case("hapticloth-server", "--record", "{tmp}/missing/record.csv"),
+    case("hapticloth-server", "--clock", "gps"),
     case("hapticloth-server", UNKNOWN),
     # hapticloth-bench
     case("hapticloth-bench step", "--dt", "-1"),
@@ -104,6 +105,7 @@ BAD = [
     case("hapticloth-render", UNKNOWN),
     # hapticloth-bench-udp
     case("hapticloth-bench-udp", "--duration", "nan"),
+    case("hapticloth-bench-udp", "--clock", "gps"),
     case("hapticloth-bench-udp", UNKNOWN),
 ]
 

@@ -30,6 +30,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import signal
 import subprocess
 import sys
 import time
@@ -250,3 +251,65 @@ def test_udp_rig_presses_the_cloth_through_the_server(tmp_path):
     assert len(forces) > 2000
     # pressing from the front (-y) into the cloth: the cloth pushes the finger back (-y)
     assert min(f[1] for f in forces) < -0.003
+
+
+def udp_session_ticks(tmp_path, clock: str, rig_rate: float, seconds: float = 3.0):
+    """A real-time `--device udp --clock CLOCK` session of `seconds`, with the fake rig streaming
+    still fingertips (4 cm in front of the cloth) at `rig_rate` Hz from before the preroll to
+    after the session: the server's JSON summary, and the sequence numbers that the force
+    packets the rig received echoed (one force packet per haptic tick, answering the newest
+    sample)."""
+    port = free_port()
+    log = tmp_path / f"rig-{clock}.csv"
+    server = subprocess.Popen(
+        [str(program("hapticloth-server")), "--scene", str(SCENE), "--device", "udp", "--udp-bind",
+         f"127.0.0.1:{port}", "--clock", clock, "--duration", str(seconds), "--no-realtime",
+         "--json", "--no-zenoh", "--no-lcm-log"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    rig = None
+    try:
+        time.sleep(0.5)  # the driver binds before the preroll
+        rig = subprocess.Popen(
+            [sys.executable, str(RIG), "--server", f"127.0.0.1:{port}", "--duration", "60",
+             "--rate", str(rig_rate), "--still=-0.02,-0.04,0;0.02,-0.04,0", "--log", str(log)],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        out, err = server.communicate(timeout=90)
+        time.sleep(0.2)  # the last force packets reach the rig
+        rig.send_signal(signal.SIGINT)  # the rig writes its log as it ends
+        assert rig.wait(timeout=30) == 0, rig.stderr.read()
+    finally:
+        for p in (server, rig):
+            if p is not None and p.poll() is None:
+                p.kill()
+                p.wait(timeout=10)
+    assert server.returncode == 0, err
+    with log.open(newline="") as f:
+        sequences = [int(row["sequence"]) for row in csv.DictReader(f)]
+    return json.loads(out.strip().splitlines()[-1]), sequences
+
+
+def test_the_device_clock_ticks_on_the_rigs_samples(tmp_path):
+    """`--clock device` (devices/hal/device_clock): the haptic loop ticks as each of the rig's
+    samples arrives. A rig streaming at 800 Hz to a loop whose rate is 1 kHz gets one tick per
+    sample, 800 a second, each answering a sample of its own; on its own clock the loop ticks
+    1000 times a second, and a fifth of its answers repeat the sample of the tick before."""
+    seconds, rate = 3.0, 800.0
+    paced, answered = udp_session_ticks(tmp_path, "device", rate, seconds)
+    ticks = paced["haptic_ticks"]
+    # A rig packet later than 1.5 ms gives one tick without a sample (the loop waits no longer):
+    # a few percent above 800 a second on a loaded machine.
+    assert 0.93 * rate * seconds <= ticks <= 1.08 * rate * seconds, paced
+    assert len(answered) >= 0.9 * ticks
+    assert len(set(answered)) >= 0.93 * len(answered)
+    own, answered = udp_session_ticks(tmp_path, "loop", rate, seconds)
+    assert own["haptic_ticks"] >= 0.97 * 1000.0 * seconds, own
+    assert len(set(answered)) <= 0.85 * len(answered)
+
+
+def test_the_device_clock_needs_a_streaming_device():
+    r = subprocess.run([str(program("hapticloth-server")), "--scene", str(SCENE), "--device", "mock",
+                        "--clock", "device", "--duration", "1", "--no-zenoh", "--no-lcm-log"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2
+    assert "clock \"device\"" in r.stderr and "not mock" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr

@@ -1,25 +1,32 @@
 // hapticloth-bench-udp: round trip rig -> server -> rig of the UDP device over loopback.
 //
-// A rig thread sends state packets at --rate and timestamps them; the main thread runs the
-// UdpDevice read/write loop at the same rate (absolute deadlines on CLOCK_MONOTONIC) and answers
-// every tick with a spring force; the rig matches force packets by the echoed sequence.
+// A rig thread sends state packets at --rate on its own clock and timestamps them; the main
+// thread runs the UdpDevice read/write loop and answers every tick with a spring force; the rig
+// matches force packets by the echoed sequence.
 //
-// Both loops run on one clock, so their phase is fixed: the rig sends each packet --lead-us
-// before a server tick, as a rig synchronised to the server would, and the round trip is that
-// lead plus the turnaround. The lead must cover the rig's own wake-up lateness, or its packet
-// misses the tick (`not_taken`): 40 us by default, above the p99 of a SCHED_FIFO wake-up with
-// the CPUs out of deep idle states (both loops run so by default, as the server's haptic
-// thread does, and the bench holds /dev/cpu_dma_latency at 0 as the server's real-time loop
-// does). With free-running clocks the packet would also wait a uniformly distributed 0..1 ms
-// for the next tick; `turnaround_us` (server tick -> force packet at the rig) is the part
-// that does not depend on the phase. The platform's timer (hapticloth-bench timer) is
-// measured right after, in the same invocation, and printed beside.
+// --clock device (the default): the server loop ticks on the rig's samples (DeviceClock, as
+// `hapticloth-server --clock device` does), so the round trip is the server's wake-up on the
+// socket plus the tick and the rig's wake-up on the answer, whatever the two clocks' phase: a
+// rig on its own clock, as a real one is.
+// --clock loop: the server loop ticks on its own absolute deadlines. Both loops then run on one
+// clock with a fixed phase: the rig sends each packet --lead-us before a server tick, as a rig
+// synchronised to the server would, and the round trip is that lead plus the turnaround. The
+// lead must cover the rig's own wake-up lateness, or its packet misses the tick (`not_taken`).
+// With free-running clocks the packet would also wait a uniformly distributed 0..1 ms for the
+// next tick.
+//
+// Both loops run SCHED_FIFO by default, as the server's haptic thread does, and the bench holds
+// /dev/cpu_dma_latency at 0 as the server's real-time loop does. `turnaround_us` (server tick
+// -> force packet at the rig) is the part that does not depend on the phase. The platform's
+// timer (hapticloth-bench timer) is measured right after, in the same invocation, and printed
+// beside.
 //
 // Prints one JSON line: percentiles of rtt_us (rig send -> force packet at the rig),
 // turnaround_us (server loop awake -> force packet at the rig) and wake_late_us (how late the
-// server loop woke after each tick's deadline: the machine's timer latency, which bounds what
-// any 1 kHz loop on it can do); loss_pct (state packets never echoed: lost, or superseded by a
-// newer one before the server's next read) and samples (packets echoed).
+// server loop woke: after each tick's deadline with --clock loop, which is the machine's timer
+// latency; after the rig sent the sample with --clock device, which is the socket's wake-up);
+// loss_pct (state packets never echoed: lost, or superseded by a newer one before the server's
+// next read) and samples (packets echoed).
 
 #include <pthread.h>
 #include <sched.h>
@@ -43,6 +50,7 @@
 #include "hal/platform_timer.hpp"
 
 #include "hal/cpu_latency.hpp"
+#include "hal/device_clock.hpp"
 #include "udp/udp_device.hpp"
 #include "udp/wire.hpp"
 
@@ -83,6 +91,7 @@ struct Config {
   double lead_us = 40.0;   ///< the rig sends this long before each server tick
   int fingers = 2;
   bool fifo = true;        ///< as the server's haptic thread (SCHED_FIFO when permitted)
+  bool device_clock = true;  ///< the server ticks on the rig's samples (else on its own deadlines)
 };
 
 /// Per sequence (index = sequence): when the rig sent it, when the server took it, when its
@@ -180,7 +189,11 @@ int main(int argc, char** argv) {
   CLI::App app{"Round trip rig -> UdpDevice -> rig over loopback; prints JSON."};
   app.add_option("--duration", cfg.duration, "s of streaming")->check(hapticloth::opts::number_in(0.1, 3600.0, false, "s"));
   app.add_option("--rate", cfg.rate, "Hz, rig and server loop")->check(hapticloth::opts::number_in(10.0, 10000.0, false, "Hz"));
-  app.add_option("--lead-us", cfg.lead_us, "us the rig sends before each server tick")
+  std::string clock = "device";
+  app.add_option("--clock", clock, "the server loop ticks on the rig's samples (device, default) or "
+                                   "on its own deadlines (loop)")
+      ->check(CLI::IsMember({"device", "loop"}));
+  app.add_option("--lead-us", cfg.lead_us, "--clock loop: us the rig sends before each server tick")
       ->check(hapticloth::opts::number_in(0.0, 1e6, false, "us"));
   app.add_option("--fingers", cfg.fingers, "fingers per packet")->check(CLI::Range(1, kMaxFingers));
   bool json_flag = true;
@@ -190,6 +203,7 @@ int main(int argc, char** argv) {
                                      "the server runs its haptic thread when permitted)");
   if (const int rc = hapticloth::opts::parse(app, argc, argv); rc >= 0) return rc;
   cfg.fifo = !no_fifo;
+  cfg.device_clock = clock == "device";
   // The CPUs kept out of deep idle states, as the server's real-time loop keeps them.
   const hapticloth::devices::CpuLatencyHold idle;
 
@@ -216,19 +230,31 @@ int main(int argc, char** argv) {
   no_timer_slack();
   if (cfg.fifo) fifo_ok = make_fifo(90);
 
-  // The server loop: read, a spring force, write; at most packets + 20 ticks.
+  // The server loop: read, a spring force, write; until 20 periods after the last packet.
   DeviceState state;
   DeviceCommand cmd;
-  std::vector<double> wake_late;  // us after each tick's deadline the loop woke
+  std::vector<double> wake_late;  // us: see the header
   wake_late.reserve(static_cast<std::size_t>(packets + 20));
-  for (long k = 0; k < packets + 20; ++k) {
-    const Nanos tick = t0 + k * period;
-    sleep_until(tick);
-    const Nanos t = now_ns();
-    wake_late.push_back(1e-3 * static_cast<double>(t - tick));
+  const DeviceClock device_clock(1e-9 * static_cast<double>(period));
+  double last = 1e-9 * static_cast<double>(t0 - period);
+  const Nanos end = t0 + (packets + 20) * period;
+  for (long k = 0; k < 2 * (packets + 20); ++k) {  // bounded: a tick at least every 1.5 periods
+    Nanos t;
+    if (cfg.device_clock) {
+      last = device_clock.wait(dev, last).at;
+      t = static_cast<Nanos>(last * 1e9);
+    } else {
+      const Nanos tick = t0 + k * period;
+      sleep_until(tick);
+      t = now_ns();
+      wake_late.push_back(1e-3 * static_cast<double>(t - tick));
+    }
+    if (t >= end) break;
     if (dev.read(1e-9 * static_cast<double>(t), state) == Status::Ok &&
-        state.sequence <= static_cast<std::uint64_t>(packets))
+        state.sequence <= static_cast<std::uint64_t>(packets)) {
       tl.taken[state.sequence] = t;
+      if (cfg.device_clock) wake_late.push_back(1e-3 * static_cast<double>(t - tl.sent[state.sequence]));
+    }
     for (int i = 0; i < cfg.fingers; ++i) cmd.force[i] = -100.0 * state.finger[i].position;
     dev.write(1e-9 * static_cast<double>(t), cmd);
   }
@@ -254,11 +280,12 @@ int main(int argc, char** argv) {
   const Percentiles r = percentiles(rtt);
   std::printf(
       "{\"rtt_us\": %s, \"turnaround_us\": %s, \"wake_late_us\": %s, \"loss_pct\": %.3f, "
-      "\"samples\": %zu, \"packets\": %ld, \"not_taken\": %ld, \"lead_us\": %.1f, "
+      "\"samples\": %zu, \"packets\": %ld, \"not_taken\": %ld, \"clock\": \"%s\", \"lead_us\": %.1f, "
       "\"rate_hz\": %.1f, \"dropped\": %llu, \"send_errors\": %llu, \"fifo\": %s, "
       "\"idle_states\": \"%s\", \"platform_timer\": %s, \"rtt_p99_excess_us\": %.1f}\n",
       json(r).c_str(), json(percentiles(turnaround)).c_str(),
-      json(percentiles(wake_late)).c_str(), loss, rtt.size(), packets, not_taken, cfg.lead_us,
+      json(percentiles(wake_late)).c_str(), loss, rtt.size(), packets, not_taken,
+      cfg.device_clock ? "device" : "loop", cfg.lead_us,
       cfg.rate, static_cast<unsigned long long>(c.dropped_total()),
       static_cast<unsigned long long>(c.send_errors),
       cfg.fifo ? (fifo_ok ? "true" : "\"failed\"") : "false", idle.note().c_str(),
