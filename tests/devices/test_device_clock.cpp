@@ -98,11 +98,19 @@ TEST(DeviceClock, OnlyAStreamingDevicePacesTheLoop) {
   EXPECT_THROW(DeviceClock(0.0), std::invalid_argument);
 }
 
-TEST(DeviceClock, AnInactiveHandleDoesNotWait) {
+// A handle that is not active (never activated, or failed) has no samples to wait for: it
+// answers at once, and the clock still spaces its ticks 1.5 periods apart.
+TEST(DeviceClock, AnInactiveDeviceTicksAtOneAndAHalfPeriods) {
   DeviceHandle h(std::make_unique<UdpDevice>(hapticloth::test::loopback_options()));
   const double t0 = mono_now();
-  EXPECT_FALSE(h.await_sample(t0 + 1.0));  // unconfigured: false at once
+  EXPECT_FALSE(h.await_sample(t0 + 1.0));
   EXPECT_LT(mono_now() - t0, 0.5);
+  const DeviceClock clock(kPeriod);
+  const double last = mono_now();
+  const DeviceClock::Tick t = clock.wait(h, last);
+  EXPECT_FALSE(t.sampled);
+  EXPECT_GE(t.at - last, DeviceClock::kLatest * kPeriod - 1e-4);
+  EXPECT_LT(t.at - last, DeviceClock::kLatest * kPeriod + kLateBound);
 }
 
 }  // namespace
