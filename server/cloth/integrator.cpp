@@ -359,6 +359,8 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
   dv_.setZero(n);
   dv_prev_.setZero(n);
   guess_.setZero(n);
+  spring_rows_.reserve(n / 3);
+  spring_row_marked_.assign(n / 3, 0);
   const int nv = model_.num_vertices();
   f_ext_.assign(nv, Vec3::Zero());
   k_ext_.assign(nv, Mat3::Zero());
@@ -475,6 +477,23 @@ void Integrator::add_springs(const ClothState& s, double h, const std::vector<Po
       add_block(val, A_.rowptr[3 * node] + 3 * fk, sys_.row_stride[node], -sp.b[k] * Kh);
       for (int l = 0; l < 3; ++l)
         if (off[k * 3 + l] >= 0) add_block(val, off[k * 3 + l], sys_.row_stride[fk], sp.b[k] * sp.b[l] * Kh);
+    }
+  }
+}
+
+// The block rows that the springs' terms reach (add_springs): their proxies' and their free
+// corners', each added once to spring_rows_.
+void Integrator::mark_spring_rows(const std::vector<PointSpring>& springs) {
+  auto mark = [&](int row) {
+    if (spring_row_marked_[row]) return;
+    spring_row_marked_[row] = 1;
+    spring_rows_.push_back(row);
+  };
+  for (const PointSpring& sp : springs) {
+    mark(sys_.free_nodes + sp.proxy);
+    for (int k = 0; k < 3; ++k) {
+      const int fk = model_.free_index[model_.elements[sp.tri].v[k]];
+      if (fk >= 0) mark(fk);
     }
   }
 }
@@ -625,7 +644,8 @@ bool Integrator::solve(const ClothState& s, double h) {
 }
 
 // Active set: a contact that would pull or a point that would pass into a fingertip changes the
-// point springs; the step is solved again with them (warm-started from the last solution).
+// point springs; the step is solved again with them (warm-started from the last solution),
+// telling the solver which block rows the change touched.
 bool Integrator::revise_contacts(const ClothState& s, double h) {
   for (int rev = 0; contacts_ && rev < cfg_.max_contact_revisions; ++rev) {
     springs_solved_.assign(springs_.begin(), springs_.end());
@@ -634,7 +654,13 @@ bool Integrator::revise_contacts(const ClothState& s, double h) {
     const auto t3 = Clock::now();
     add_springs(s, h, springs_solved_, -1.0);
     add_springs(s, h, springs_, 1.0);
-    const SolveStatus st = solver_->solve(A_, rhs_.data(), dv_.data());
+    spring_rows_.clear();
+    mark_spring_rows(springs_solved_);
+    mark_spring_rows(springs_);
+    for (int row : spring_rows_) spring_row_marked_[row] = 0;
+    const SolveStatus st = solver_->solve_changed(A_, spring_rows_.data(),
+                                                  static_cast<int>(spring_rows_.size()), rhs_.data(),
+                                                  dv_.data());
     timing_.iterations += solver_->iterations();
     timing_.solve_ms += ms_since(t3);
     if (st != SolveStatus::Ok || !dv_.allFinite()) {

@@ -162,6 +162,7 @@ class Integrator {
   void assemble_proxies(const ClothState& s, double h);
   void add_springs(const ClothState& s, double h, const std::vector<PointSpring>& springs,
                    double sign);
+  void mark_spring_rows(const std::vector<PointSpring>& springs);
   void candidate_state(const ClothState& s, double h);
   double contact_work(const ClothState& s) const;
   template <bool kViscous, bool kSpd>
@@ -180,6 +181,8 @@ class Integrator {
   SymCsr A_;
   std::vector<ProxyNode> proxies_;
   std::vector<PointSpring> springs_, springs_solved_;  // solved_: the set a re-solve replaces
+  std::vector<int> spring_rows_;         // block rows a re-solve's spring change touches
+  std::vector<char> spring_row_marked_;  // per block row: in spring_rows_
   StepContacts* contacts_ = nullptr;
   Eigen::VectorXd rhs_, dv_, dv_prev_, guess_;  // dv_prev_: the solution before dv_
   std::vector<Vec3> f_ext_;

@@ -24,6 +24,16 @@ class LinearSolver {
   /// Solves again with the matrix of the last solve(), unchanged since: a direct solver reuses
   /// its factor, an iterative one its copy of the matrix and its preconditioner.
   virtual SolveStatus resolve(const SymCsr& A, const double* b, double* x) { return solve(A, b, x); }
+  /// Solves A x = b where A differs from the matrix of the last solve() only in the listed
+  /// block rows (3x3 blocks; each row once) and, by symmetry, their columns: the fingertip
+  /// contacts' re-solves, whose springs touch a few vertices and the proxies. An iterative
+  /// solver reloads and re-preconditions those rows only; a direct one factors again.
+  virtual SolveStatus solve_changed(const SymCsr& A, const int* block_rows, int count,
+                                    const double* b, double* x) {
+    (void)block_rows;
+    (void)count;
+    return solve(A, b, x);
+  }
   /// Iterations of the last solve (1 for a direct solve).
   int iterations() const { return iterations_; }
   /// Relative residual |b - A x| / |b| of the last solve (iterative solvers).

@@ -25,69 +25,116 @@ const char* to_string(SolveStatus s) {
 
 namespace {
 
-// Block-sparse-row copy of a block3 SymCsr: each 3x3 block's 9 values contiguous (row-major),
-// one column offset per block. T = float halves the memory the matrix-vector product streams,
-// which is what bounds PCG on large meshes (the product reads the whole matrix every
-// iteration); products accumulate in double.
+// Block-sparse-row copy of a block3 SymCsr in two parts. The hub rows (block rows far longer
+// than a mesh's: the fingertip proxies, coupled to every vertex) and their columns are kept
+// apart, as the list of each hub row's non-zero blocks: a step uses the few blocks in contact
+// of the proxies' dense rows and columns, so the product costs what the cloth alone costs. The
+// rest, the cloth's blocks, has a fixed layout, so that one block row can be reloaded alone (a
+// contact revision changes the rows of the vertices in contact and the hubs). Each 3x3 block's
+// values are stored column-major with each column padded to 4 lanes, so that y += B x is three
+// 4-wide multiply-adds of a column by a broadcast x entry. T = float halves the memory the
+// product streams, which is what bounds PCG on large meshes (the product reads the whole matrix
+// every iteration); products accumulate in double.
 template <class T>
 struct Bsr {
-  std::vector<int> rowptr;  // per block row: first stored block
-  std::vector<int> xoff;    // per stored block: scalar offset of its column triple in x
-  std::vector<int> diag;    // per block row: column position (in scalars) of its diagonal block in A's row
-  std::vector<T> val;       // kBlock per stored block
+  static constexpr int kBlock = 12;  // 3 columns x 4 lanes
 
-  void build_pattern(const SymCsr& A) {
+  std::vector<int> rowptr;  // per block row: first cloth block (hub rows have none)
+  std::vector<int> xoff;    // per cloth block: scalar offset of its column triple in x
+  std::vector<int> srck;    // per cloth block: its column position (in scalars) in A's row
+  std::vector<int> diag;    // per block row: column position (in scalars) of its diagonal block in A's row
+  std::vector<T> val;       // kBlock per cloth block
+  std::vector<int> hubs;            // the hub block rows
+  std::vector<char> is_hub;         // per block row
+  std::vector<int> hub_ptr;         // per hub: first entry (hubs.size() + 1)
+  std::vector<int> hub_col;         // per entry: the block column
+  std::vector<T> hub_val;           // kBlock per entry
+
+  void build_pattern(const SymCsr& A, const std::vector<int>& hub_rows) {
     const int nb = A.n / 3;
+    hubs = hub_rows;
+    is_hub.assign(nb, 0);
+    for (int h : hubs) is_hub[h] = 1;
     rowptr.assign(nb + 1, 0);
     diag.assign(nb, -1);
-    int blocks = 0;
+    xoff.clear();
+    srck.clear();
+    int hub_blocks = 0;
     for (int br = 0; br < nb; ++br) {
+      rowptr[br] = static_cast<int>(xoff.size());
       const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
-      for (int k = 0; k < len; k += 3)
-        if (A.col[o + k] == 3 * br) diag[br] = k;
-      blocks += len / 3;
+      for (int k = 0; k < len; k += 3) {
+        const int col = A.col[o + k];
+        if (col == 3 * br) diag[br] = k;
+        if (is_hub[br]) {
+          ++hub_blocks;
+        } else if (!is_hub[col / 3]) {
+          xoff.push_back(col);
+          srck.push_back(k);
+        }
+      }
       if (diag[br] < 0) throw std::invalid_argument("pcg: diagonal block missing from the pattern");
     }
-    xoff.assign(blocks, 0);
-    val.assign(kBlock * blocks, T(0));
+    rowptr[nb] = static_cast<int>(xoff.size());
+    val.assign(kBlock * xoff.size(), T(0));
+    hub_ptr.assign(hubs.size() + 1, 0);
+    hub_col.assign(hub_blocks, 0);
+    hub_val.assign(kBlock * static_cast<std::size_t>(hub_blocks), T(0));
   }
 
-  // Copies the values of A in, one streaming pass, leaving out the blocks that are exactly
-  // zero: the pattern holds a dense row and column per proxy (a fingertip may touch any
-  // vertex) of which a step uses the few blocks in contact, and the product below then costs
-  // what the cloth alone costs. Blocks are stored column-major with each column padded to 4
-  // lanes, so that y += B x is three 4-wide multiply-adds of a column by a broadcast x entry.
   void load(const SymCsr& A) {
     const int nb = static_cast<int>(diag.size());
-    const double* v = A.val.data();
-    T* dst = val.data();
-    int stored = 0;
-    for (int br = 0; br < nb; ++br) {
-      rowptr[br] = stored;
-      const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
-      const double* r0 = v + o;
+    for (int br = 0; br < nb; ++br) load_row(A, br);
+    load_hubs(A);
+  }
+
+  // The cloth blocks of block row br (none for a hub row).
+  void load_row(const SymCsr& A, int br) {
+    const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
+    const double* r0 = A.val.data() + o;
+    T* dst = val.data() + kBlock * rowptr[br];
+    for (int b = rowptr[br]; b < rowptr[br + 1]; ++b, dst += kBlock) store(r0 + srck[b], len, dst);
+  }
+
+  // Every hub row's blocks that are not exactly zero.
+  void load_hubs(const SymCsr& A) {
+    int e = 0;
+    for (std::size_t i = 0; i < hubs.size(); ++i) {
+      hub_ptr[i] = e;
+      const int h = hubs[i], o = A.rowptr[3 * h], len = A.rowptr[3 * h + 1] - o;
+      const double* r0 = A.val.data() + o;
       const double* r1 = r0 + len;
       const double* r2 = r1 + len;
       for (int k = 0; k < len; k += 3) {
         bool zero = true;
         for (int c = 0; c < 3; ++c) zero = zero && r0[k + c] == 0.0 && r1[k + c] == 0.0 && r2[k + c] == 0.0;
-        if (zero && k != diag[br]) continue;
-        for (int c = 0; c < 3; ++c) {
-          dst[4 * c] = T(r0[k + c]);
-          dst[4 * c + 1] = T(r1[k + c]);
-          dst[4 * c + 2] = T(r2[k + c]);
-          dst[4 * c + 3] = T(0);
-        }
-        xoff[stored++] = A.col[o + k];
-        dst += kBlock;
+        if (zero && k != diag[h]) continue;
+        hub_col[e] = A.col[o + k] / 3;
+        store(r0 + k, len, hub_val.data() + kBlock * e);
+        ++e;
       }
     }
-    rowptr[nb] = stored;
+    hub_ptr[hubs.size()] = e;
+  }
+
+  // The 3x3 block at p (rows `len` apart in A) into dst, column-major, padded.
+  static void store(const double* p, int len, T* dst) {
+    for (int c = 0; c < 3; ++c) {
+      dst[4 * c] = T(p[c]);
+      dst[4 * c + 1] = T(p[len + c]);
+      dst[4 * c + 2] = T(p[2 * len + c]);
+      dst[4 * c + 3] = T(0);
+    }
   }
 
   // y = A x, and returns x . y (the PCG step needs p . Ap; fused to save a pass). y must have
   // one padding entry past its end (the last block row writes 4 lanes).
   double multiply_dot(const double* x, double* y) const {
+    return multiply_cloth(x, y) + multiply_hubs(x, y);
+  }
+
+  // The cloth blocks: every block row's y (0 for a hub row), and x . y.
+  double multiply_cloth(const double* x, double* y) const {
     const int nb = static_cast<int>(diag.size());
     const T* b = val.data();
 #if defined(__AVX2__) && defined(__FMA__)
@@ -146,7 +193,37 @@ struct Bsr {
 #endif
   }
 
-  static constexpr int kBlock = 12;  // 3 columns x 4 lanes
+  // The hub blocks, after multiply_cloth: y_h = sum_j B_hj x_j for each hub h, and for a cloth
+  // column j the symmetric block's share y_j += B_hj^T x_h; returns what they add to x . y.
+  double multiply_hubs(const double* x, double* y) const {
+    double dot = 0.0;
+    for (std::size_t i = 0; i < hubs.size(); ++i) {
+      const int h = hubs[i];
+      const double* xh = x + 3 * h;
+      double yh0 = 0.0, yh1 = 0.0, yh2 = 0.0;
+      for (int e = hub_ptr[i]; e < hub_ptr[i + 1]; ++e) {
+        const T* B = hub_val.data() + kBlock * e;  // B(r, c) = B[4 c + r]
+        const int j = hub_col[e];
+        const double* xj = x + 3 * j;
+        yh0 += double(B[0]) * xj[0] + double(B[4]) * xj[1] + double(B[8]) * xj[2];
+        yh1 += double(B[1]) * xj[0] + double(B[5]) * xj[1] + double(B[9]) * xj[2];
+        yh2 += double(B[2]) * xj[0] + double(B[6]) * xj[1] + double(B[10]) * xj[2];
+        if (is_hub[j]) continue;  // a hub's own row lists its block
+        const double d0 = double(B[0]) * xh[0] + double(B[1]) * xh[1] + double(B[2]) * xh[2];
+        const double d1 = double(B[4]) * xh[0] + double(B[5]) * xh[1] + double(B[6]) * xh[2];
+        const double d2 = double(B[8]) * xh[0] + double(B[9]) * xh[1] + double(B[10]) * xh[2];
+        y[3 * j] += d0;
+        y[3 * j + 1] += d1;
+        y[3 * j + 2] += d2;
+        dot += xj[0] * d0 + xj[1] * d1 + xj[2] * d2;
+      }
+      y[3 * h] = yh0;
+      y[3 * h + 1] = yh1;
+      y[3 * h + 2] = yh2;
+      dot += xh[0] * yh0 + xh[1] * yh1 + xh[2] * yh2;
+    }
+    return dot;
+  }
 
  private:
 #if defined(__AVX2__) && defined(__FMA__)
@@ -175,15 +252,17 @@ class PcgSolver final : public LinearSolver {
     x0_.assign(n_ + 1, 0.0);
     guess_.assign(n_, 0.0);
     inv_.assign(9 * (n_ / 3), 0.0);
-    if (opt_.single_precision_matrix) mf_.build_pattern(A);
-    md_.build_pattern(A);  // also the fallback of the float copy
     // Hub rows: block rows far longer than a mesh's (the fingertip proxies, coupled to every
-    // vertex), found as CHOLMOD's ordering finds them.
+    // vertex), found as CHOLMOD's ordering finds them. The matrix copy keeps them apart; the
+    // preconditioner's dense block takes them when asked (hub_block).
     const int nb = n_ / 3;
     const double dense = std::max(16.0, 10.0 * std::sqrt(static_cast<double>(n_)));
-    hubs_.clear();
-    for (int br = 0; br < nb && opt_.hub_block; ++br)
-      if (A.rowptr[3 * br + 1] - A.rowptr[3 * br] > dense) hubs_.push_back(br);
+    std::vector<int> hub_rows;
+    for (int br = 0; br < nb; ++br)
+      if (A.rowptr[3 * br + 1] - A.rowptr[3 * br] > dense) hub_rows.push_back(br);
+    if (opt_.single_precision_matrix) mf_.build_pattern(A, hub_rows);
+    md_.build_pattern(A, hub_rows);  // also the fallback of the float copy
+    hubs_ = opt_.hub_block ? hub_rows : std::vector<int>{};
     local_.assign(nb, -1);
     cluster_.clear();
     cluster_.reserve(kMaxCluster);
@@ -209,6 +288,19 @@ class PcgSolver final : public LinearSolver {
     if (!prepared_) return solve(A, b, x);
     return float_in_use_ ? run(mf_, A, b, x, false) : run(md_, A, b, x, false);
   }
+  // The copy in use (the one the last solve prepared) gets the changed rows; the float one
+  // falls back to a whole double solve as solve() does.
+  SolveStatus solve_changed(const SymCsr& A, const int* block_rows, int count, const double* b,
+                            double* x) override {
+    if (!prepared_) return solve(A, b, x);
+    if (!float_in_use_) return run_changed(md_, A, block_rows, count, b, x);
+    std::copy(x, x + n_, guess_.begin());
+    const SolveStatus st = run_changed(mf_, A, block_rows, count, b, x);
+    if (st != SolveStatus::NotConverged) return st;
+    float_in_use_ = false;
+    std::copy(guess_.begin(), guess_.begin() + n_, x);
+    return run(md_, A, b, x, true);
+  }
 
  private:
   template <class T>
@@ -220,6 +312,25 @@ class PcgSolver final : public LinearSolver {
     return iterate(M, b, x, n, nb);
   }
 
+  // A re-solve after a change in a few block rows: those rows reloaded and re-preconditioned,
+  // the hubs' blocks reloaded and their dense block factored again. A contact revision of the
+  // pinched 968-triangle square then reloads some tens of rows of the matrix, not all of it.
+  template <class T>
+  SolveStatus run_changed(Bsr<T>& M, const SymCsr& A, const int* rows, int count, const double* b,
+                          double* x) {
+    iterations_ = 0;
+    residual_ = 0.0;
+    prepared_ = false;
+    for (int i = 0; i < count; ++i) {
+      M.load_row(A, rows[i]);
+      if (!invert_diagonal(A, rows[i], M.diag[rows[i]])) return SolveStatus::NotPositiveDefinite;
+    }
+    M.load_hubs(A);
+    if (!hubs_.empty() && !factor_cluster(M, A)) return SolveStatus::NotPositiveDefinite;
+    prepared_ = true;
+    return iterate(M, b, x, n_, n_ / 3);
+  }
+
   // The matrix copy, the block-Jacobi inverses and the hub block. False if a diagonal block or
   // the hub block is not positive definite.
   template <class T>
@@ -227,33 +338,36 @@ class PcgSolver final : public LinearSolver {
     prepared_ = false;
     const int nb = n_ / 3;
     M.load(A);
-    // Block-Jacobi preconditioner: the inverse of each 3x3 diagonal block (from the double
-    // values, by cofactors).
-    const double* v = A.val.data();
-    for (int br = 0; br < nb; ++br) {
-      const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
-      const int d = M.diag[br];  // column position of the diagonal block
-      const double* r0 = v + o + d;
-      const double a00 = r0[0], a01 = r0[1], a02 = r0[2];
-      const double a10 = r0[len], a11 = r0[len + 1], a12 = r0[len + 2];
-      const double a20 = r0[2 * len], a21 = r0[2 * len + 1], a22 = r0[2 * len + 2];
-      const double c00 = a11 * a22 - a12 * a21, c01 = a02 * a21 - a01 * a22, c02 = a01 * a12 - a02 * a11;
-      const double det = a00 * c00 + a10 * c01 + a20 * c02;
-      if (!(det > 0.0) || !std::isfinite(det) || !(a00 > 0.0)) return false;
-      const double id = 1.0 / det;
-      double* m = inv_.data() + 9 * br;
-      m[0] = c00 * id;
-      m[1] = c01 * id;
-      m[2] = c02 * id;
-      m[3] = (a12 * a20 - a10 * a22) * id;
-      m[4] = (a00 * a22 - a02 * a20) * id;
-      m[5] = (a02 * a10 - a00 * a12) * id;
-      m[6] = (a10 * a21 - a11 * a20) * id;
-      m[7] = (a01 * a20 - a00 * a21) * id;
-      m[8] = (a00 * a11 - a01 * a10) * id;
-    }
+    for (int br = 0; br < nb; ++br)
+      if (!invert_diagonal(A, br, M.diag[br])) return false;
     if (!hubs_.empty() && !factor_cluster(M, A)) return false;
     prepared_ = true;
+    return true;
+  }
+
+  // Block-Jacobi preconditioner: the inverse of block row br's 3x3 diagonal block (at column
+  // position d of A's row; from the double values, by cofactors). False if it is not positive
+  // definite.
+  bool invert_diagonal(const SymCsr& A, int br, int d) {
+    const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
+    const double* r0 = A.val.data() + o + d;
+    const double a00 = r0[0], a01 = r0[1], a02 = r0[2];
+    const double a10 = r0[len], a11 = r0[len + 1], a12 = r0[len + 2];
+    const double a20 = r0[2 * len], a21 = r0[2 * len + 1], a22 = r0[2 * len + 2];
+    const double c00 = a11 * a22 - a12 * a21, c01 = a02 * a21 - a01 * a22, c02 = a01 * a12 - a02 * a11;
+    const double det = a00 * c00 + a10 * c01 + a20 * c02;
+    if (!(det > 0.0) || !std::isfinite(det) || !(a00 > 0.0)) return false;
+    const double id = 1.0 / det;
+    double* m = inv_.data() + 9 * br;
+    m[0] = c00 * id;
+    m[1] = c01 * id;
+    m[2] = c02 * id;
+    m[3] = (a12 * a20 - a10 * a22) * id;
+    m[4] = (a00 * a22 - a02 * a20) * id;
+    m[5] = (a02 * a10 - a00 * a12) * id;
+    m[6] = (a10 * a21 - a11 * a20) * id;
+    m[7] = (a01 * a20 - a00 * a21) * id;
+    m[8] = (a00 * a11 - a01 * a10) * id;
     return true;
   }
 
@@ -354,10 +468,10 @@ class PcgSolver final : public LinearSolver {
     for (int node : cluster_) local_[node] = -1;
     cluster_.clear();
     weight_.clear();
-    for (int hub : hubs_)
-      for (int k = M.rowptr[hub]; k < M.rowptr[hub + 1]; ++k) {
-        const int node = M.xoff[k] / 3;
-        const T* blk = M.val.data() + Bsr<T>::kBlock * k;
+    for (std::size_t i = 0; i < M.hubs.size(); ++i)
+      for (int k = M.hub_ptr[i]; k < M.hub_ptr[i + 1]; ++k) {
+        const int hub = M.hubs[i], node = M.hub_col[k];
+        const T* blk = M.hub_val.data() + Bsr<T>::kBlock * k;
         const double w = std::abs(double(blk[0])) + std::abs(double(blk[5])) + std::abs(double(blk[10]));
         if (node != hub) weight_.push_back({-w, node});
       }

@@ -1,6 +1,7 @@
 // Linear solvers: CHOLMOD and PCG agree; the system matrix of eq. 9 stays SPD on random states.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 
 #include "cloth/integrator.hpp"
@@ -177,6 +178,81 @@ TEST(Solver, PcgWithContactHubsMatchesCholmod) {
     iterations[hub] = pcg->iterations();
   }
   EXPECT_LT(iterations[1], iterations[0]) << "with " << iterations[1] << ", without " << iterations[0];
+}
+
+// A contact revision changes the springs, so the matrix changes in the rows of the springs'
+// corners and proxies only. PCG told those rows (solve_changed) reloads and re-preconditions
+// just them, and must then solve the new system as CHOLMOD does; told none, it would solve the
+// old one, which this checks is far enough away to tell.
+TEST(Solver, PcgSolveChangedReloadsTheChangedRows) {
+  Sheet sheet;
+  std::mt19937 rng(9);
+  const auto s = random_state(sheet.model, rng, 0.002);
+  cloth::IntegratorConfig cfg;
+  cfg.dt = 1e-3;
+  cfg.proxies = 2;
+  cloth::Integrator integ(sheet.model, cfg, cloth::make_cholmod_solver());
+  for (int f = 0; f < 2; ++f) integ.proxies()[f].stiffness = 800.0;
+  const cloth::Mat3 K = 3e3 * cloth::Mat3::Identity();
+  auto springs_on = [&](std::initializer_list<int> tris) {
+    std::vector<cloth::PointSpring> out;
+    for (int tri : tris)
+      for (int q = 0; q < 4; ++q) {
+        cloth::PointSpring sp;
+        sp.tri = tri;
+        sp.b[0] = sp.b[1] = sp.b[2] = 1.0 / 3.0;
+        sp.proxy = q % 2;
+        sp.K = K;
+        out.push_back(sp);
+      }
+    return out;
+  };
+  const auto before = springs_on({100, 101}), after = springs_on({101, 140, 141});
+  integ.point_springs() = before;
+  const cloth::SymCsr A0 = integ.system_matrix(s, cfg.dt, cloth::JacobianMode::Spd);
+  integ.point_springs() = after;
+  const cloth::SymCsr A1 = integ.system_matrix(s, cfg.dt, cloth::JacobianMode::Spd);
+  std::vector<int> rows;
+  const int nf = A1.n / 3 - 2;
+  for (const auto* set : {&before, &after})
+    for (const auto& sp : *set) {
+      rows.push_back(nf + sp.proxy);
+      for (int k = 0; k < 3; ++k) {
+        const int fk = sheet.model.free_index[sheet.model.elements[sp.tri].v[k]];
+        if (fk >= 0) rows.push_back(fk);
+      }
+    }
+  std::sort(rows.begin(), rows.end());
+  rows.erase(std::unique(rows.begin(), rows.end()), rows.end());
+  std::vector<double> b(A1.n), x_chol(A1.n, 0.0);
+  for (auto& v : b) v = std::uniform_real_distribution<double>(-1, 1)(rng);
+  auto chol = cloth::make_cholmod_solver();
+  chol->analyze(A1);
+  ASSERT_EQ(chol->solve(A1, b.data(), x_chol.data()), cloth::SolveStatus::Ok);
+  double nrm = 0;
+  for (double v : x_chol) nrm = std::max(nrm, std::abs(v));
+  for (bool float_matrix : {false, true}) {
+    cloth::PcgOptions po;
+    po.tolerance = 1e-10;
+    po.single_precision_matrix = float_matrix;
+    auto pcg = cloth::make_pcg_solver(po);
+    pcg->analyze(A0);
+    std::vector<double> x(A0.n, 0.0), x_stale(A0.n, 0.0);
+    ASSERT_EQ(pcg->solve(A0, b.data(), x.data()), cloth::SolveStatus::Ok);
+    x_stale = x;
+    // The rows changed, told: A1's solution.
+    ASSERT_EQ(pcg->solve_changed(A1, rows.data(), static_cast<int>(rows.size()), b.data(), x.data()),
+              cloth::SolveStatus::Ok);
+    double err = 0, stale = 0;
+    for (int i = 0; i < A1.n; ++i) {
+      err = std::max(err, std::abs(x[i] - x_chol[i]));
+      stale = std::max(stale, std::abs(x_stale[i] - x_chol[i]));
+    }
+    // A float copy solves a matrix within float rounding of A1 (PcgOptions).
+    const double bound = (float_matrix ? 1e-5 : 1e-7) * nrm;
+    EXPECT_LE(err, bound) << "float matrix " << float_matrix;
+    EXPECT_GT(stale, 100.0 * bound) << "the two systems are too close to tell apart";
+  }
 }
 
 TEST(Solver, PcgReportsNonConvergenceAndIndefiniteness) {
