@@ -15,15 +15,20 @@
 namespace hapticloth::devices {
 
 namespace {
-const std::map<std::string, DeviceFactory>& registry() {
-  static const std::map<std::string, DeviceFactory> r = {
-      {"mock", make_mock_device},
-      {"replay", make_replay_device},
+struct Driver {
+  DeviceFactory make;
+  bool paces_loop;  ///< as the driver's Device::paces_loop
+};
+
+const std::map<std::string, Driver>& registry() {
+  static const std::map<std::string, Driver> r = {
+      {"mock", {make_mock_device, false}},
+      {"replay", {make_replay_device, false}},
 #ifdef HAPTICLOTH_HAVE_UDP
-      {"udp", make_udp_device},
+      {"udp", {make_udp_device, true}},
 #endif
 #ifdef HAPTICLOTH_HAVE_REMOTE
-      {"remote", make_remote_device},
+      {"remote", {make_remote_device, false}},
 #endif
   };
   return r;
@@ -44,7 +49,12 @@ std::unique_ptr<Device> make_device(const DeviceOptions& opt) {
     for (const auto& [k, v] : r) known += (known.empty() ? "" : ", ") + k;
     throw std::invalid_argument("unknown device '" + opt.driver + "' (" + known + ")");
   }
-  return it->second(opt);
+  return it->second.make(opt);
+}
+
+bool driver_paces_loop(const std::string& driver) {
+  const auto it = registry().find(driver);
+  return it != registry().end() && it->second.paces_loop;
 }
 
 }  // namespace hapticloth::devices

@@ -16,6 +16,10 @@ using DeviceFactory = std::function<std::unique_ptr<Device>(const DeviceOptions&
 /// Names of the registered drivers, sorted.
 std::vector<std::string> device_names();
 
+/// Whether the driver named `driver` streams on its own clock and can pace the haptic loop
+/// (Device::paces_loop; [device] clock = "device"). False for an unknown name.
+bool driver_paces_loop(const std::string& driver);
+
 /// Creates the driver named opt.driver. Throws std::invalid_argument listing the known
 /// drivers for an unknown name (never a silent default).
 std::unique_ptr<Device> make_device(const DeviceOptions& opt);

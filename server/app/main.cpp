@@ -124,7 +124,7 @@ bool choose_device(const Args& a, app::Scene& scene) {
   if (!a.replay.empty()) scene.device.replay_path = a.replay;
   if (!a.udp_bind.empty()) scene.device.udp_bind = a.udp_bind;
   if (!a.clock.empty()) scene.haptics.device_clock = a.clock == "device";
-  if (scene.haptics.device_clock && scene.device.driver != "udp")
+  if (scene.haptics.device_clock && !devices::driver_paces_loop(scene.device.driver))
     throw app::ConfigError("clock \"device\" (--clock or the scene's [device] clock) needs a device "
                            "that streams on its own clock (udp), not " + scene.device.driver);
   if (a.no_rt) scene.haptics.try_realtime = false;

@@ -145,7 +145,7 @@ void load_device(const TomlFile& f, const toml::table& t, const std::string& pat
     f.fail(t.get("clock"), "device.clock", "must be \"loop\" (the haptic loop's own deadlines) or "
                                            "\"device\" (a tick on each of the device's samples)");
   s.haptics.device_clock = clock == "device";
-  if (s.haptics.device_clock && d.driver != "udp")
+  if (s.haptics.device_clock && !devices::driver_paces_loop(d.driver))
     f.fail(t.get("clock"), "device.clock", "\"device\" needs a device that streams on its own "
                                            "clock (driver udp), not " + d.driver);
   auto& m = s.haptics.mapping;

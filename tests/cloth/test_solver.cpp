@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <memory>
 #include <random>
 
 #include "cloth/integrator.hpp"
@@ -38,6 +39,25 @@ cloth::ClothState random_state(const cloth::ClothModel& m, std::mt19937& rng, do
   }
   return s;
 }
+
+// The sheet with two fingertip proxies (800 N/m, 1 N s/m) at a random state: the system of a
+// pinch once point springs are added (CHOLMOD is the integrator's own solver here).
+struct PinchedSheet {
+  Sheet sheet;
+  cloth::ClothState s;
+  cloth::IntegratorConfig cfg;
+  std::unique_ptr<cloth::Integrator> integ;
+  explicit PinchedSheet(std::mt19937& rng) : s(random_state(sheet.model, rng, 0.002)) {
+    cfg.dt = 1e-3;
+    cfg.proxies = 2;
+    integ = std::make_unique<cloth::Integrator>(sheet.model, cfg, cloth::make_cholmod_solver());
+    for (int f = 0; f < 2; ++f) {
+      integ->proxies()[f].stiffness = 800.0;
+      integ->proxies()[f].damping = 1.0;
+    }
+  }
+  cloth::SymCsr system_matrix() { return integ->system_matrix(s, cfg.dt, cloth::JacobianMode::Spd); }
+};
 
 // The system of eq. 9 (Spd) of a step h from a random state of the sheet, a random right-hand
 // side, and CHOLMOD's solution of it: what PCG is checked against.
@@ -128,17 +148,8 @@ TEST(Solver, PcgMatchesCholmod) {
 // out and preconditions the hubs with the vertices they touch as one dense block: the answer
 // is CHOLMOD's, in fewer iterations than with block-Jacobi alone.
 TEST(Solver, PcgWithContactHubsMatchesCholmod) {
-  Sheet sheet;
   std::mt19937 rng(8);
-  const auto s = random_state(sheet.model, rng, 0.002);
-  cloth::IntegratorConfig cfg;
-  cfg.dt = 1e-3;
-  cfg.proxies = 2;
-  cloth::Integrator integ(sheet.model, cfg, cloth::make_cholmod_solver());
-  for (int f = 0; f < 2; ++f) {
-    integ.proxies()[f].stiffness = 800.0;
-    integ.proxies()[f].damping = 1.0;
-  }
+  PinchedSheet p(rng);
   const Vec3 n(0.0, 0.0, 1.0);
   const cloth::Mat3 K = 3e3 * n * n.transpose() + 3e3 * (cloth::Mat3::Identity() - n * n.transpose());
   std::uniform_real_distribution<double> U(0.05, 0.9);
@@ -152,10 +163,10 @@ TEST(Solver, PcgWithContactHubsMatchesCholmod) {
       sp.proxy = q % 2;
       sp.f = 0.01 * (sp.proxy ? -n : n);
       sp.K = K;
-      integ.point_springs().push_back(sp);
+      p.integ->point_springs().push_back(sp);
     }
   }
-  const cloth::SymCsr A = integ.system_matrix(s, cfg.dt, cloth::JacobianMode::Spd);
+  const cloth::SymCsr A = p.system_matrix();
   std::vector<double> b(A.n), x_chol(A.n, 0.0);
   for (auto& v : b) v = std::uniform_real_distribution<double>(-1, 1)(rng);
   auto chol = cloth::make_cholmod_solver();
@@ -185,14 +196,8 @@ TEST(Solver, PcgWithContactHubsMatchesCholmod) {
 // just them, and must then solve the new system as CHOLMOD does; told none, it would solve the
 // old one, which this checks is far enough away to tell.
 TEST(Solver, PcgSolveChangedReloadsTheChangedRows) {
-  Sheet sheet;
   std::mt19937 rng(9);
-  const auto s = random_state(sheet.model, rng, 0.002);
-  cloth::IntegratorConfig cfg;
-  cfg.dt = 1e-3;
-  cfg.proxies = 2;
-  cloth::Integrator integ(sheet.model, cfg, cloth::make_cholmod_solver());
-  for (int f = 0; f < 2; ++f) integ.proxies()[f].stiffness = 800.0;
+  PinchedSheet p(rng);
   const cloth::Mat3 K = 3e3 * cloth::Mat3::Identity();
   auto springs_on = [&](std::initializer_list<int> tris) {
     std::vector<cloth::PointSpring> out;
@@ -208,17 +213,17 @@ TEST(Solver, PcgSolveChangedReloadsTheChangedRows) {
     return out;
   };
   const auto before = springs_on({100, 101}), after = springs_on({101, 140, 141});
-  integ.point_springs() = before;
-  const cloth::SymCsr A0 = integ.system_matrix(s, cfg.dt, cloth::JacobianMode::Spd);
-  integ.point_springs() = after;
-  const cloth::SymCsr A1 = integ.system_matrix(s, cfg.dt, cloth::JacobianMode::Spd);
+  p.integ->point_springs() = before;
+  const cloth::SymCsr A0 = p.system_matrix();
+  p.integ->point_springs() = after;
+  const cloth::SymCsr A1 = p.system_matrix();
   std::vector<int> rows;
   const int nf = A1.n / 3 - 2;
   for (const auto* set : {&before, &after})
     for (const auto& sp : *set) {
       rows.push_back(nf + sp.proxy);
       for (int k = 0; k < 3; ++k) {
-        const int fk = sheet.model.free_index[sheet.model.elements[sp.tri].v[k]];
+        const int fk = p.sheet.model.free_index[p.sheet.model.elements[sp.tri].v[k]];
         if (fk >= 0) rows.push_back(fk);
       }
     }

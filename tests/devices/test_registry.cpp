@@ -27,3 +27,19 @@ TEST(Registry, KnowsItsDriversAndRefusesOthers) {
     EXPECT_NE(make_device(o), nullptr) << name;
   }
 }
+
+// The registry's word on which drivers pace the loop (what scene files are checked against)
+// is each driver's own.
+TEST(Registry, KnowsWhichDriversPaceTheLoop) {
+  DeviceOptions o;
+  o.udp_bind = "127.0.0.1:0";
+  bool any = false;
+  for (const auto& name : device_names()) {
+    o.driver = name;
+    const bool paces = make_device(o)->paces_loop();
+    EXPECT_EQ(driver_paces_loop(name), paces) << name;
+    any = any || paces;
+  }
+  EXPECT_TRUE(any) << "no driver paces the loop (udp should)";
+  EXPECT_FALSE(driver_paces_loop("phantom"));
+}
