@@ -22,6 +22,13 @@ constexpr double kAddDepth = 5e-6;   // m
 constexpr int kFreeRevisions = 12;
 // Steps up to this long defer their late friction corrections to the next step (see revise()).
 constexpr double kDeferFrictionStep = 2e-3;  // s
+// Released contacts and friction corrections ask for a re-solve once their forces add up to this
+// share of the finger's normal force; smaller ones take effect from the next step. 1% is the
+// bound the stroke's Coulomb friction is held to, and a tenth of the force a person can tell
+// apart (7-10%). At 0.2%, half the steps of a held pinch were solved twice: contacts at the
+// rim of the pinch, where the normal force goes to zero, switching between sticking and
+// sliding as the hanging cloth sways (BENCHMARKS.md, "Force fidelity").
+constexpr double kResolveShare = 1e-2;
 }  // namespace
 
 FingertipContact::FingertipContact(const cloth::ClothModel& model,
@@ -391,8 +398,8 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
     // Contacts that would pull at the end of the step are released; points that would end
     // inside the sphere become contacts; Coulomb's law is checked on the solved step. The step
     // is solved again for every new contact, and for released contacts and friction
-    // corrections once their forces add up to 0.2% of the finger's normal force at the end of
-    // the step (smaller ones are applied from the next step on: the contact set and friction
+    // corrections once their forces add up to kResolveShare of the finger's normal force at the
+    // end of the step (smaller ones are applied from the next step on: the contact set and friction
     // state move with them).
     double pulled = 0.0, fchange = 0.0, fscale = 0.0;
     for (Sample& q : F.now) {
@@ -407,7 +414,7 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
         fchange += revise_friction(q, p0, rel, defer);
     }
     const bool added = add_contacts(f, x_new, p0, p1);
-    changed = changed || added || pulled + fchange > 2e-3 * fscale + 1e-6;
+    changed = changed || added || pulled + fchange > kResolveShare * fscale + 1e-6;
   }
   if (!changed) return false;
   for (int f = 0; f < fingers_; ++f) {

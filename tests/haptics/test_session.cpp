@@ -63,7 +63,7 @@ TEST(Haptics, StrokeFeelsCoulombFriction) {
               "[%.3f, %.3f] (mu 0.4)\n", mean, p99, worst, ratio_min, ratio_max);
   EXPECT_GT(slipping, 500);
   EXPECT_LE(mean, 0.01);
-  // Friction corrections under 0.2% of the normal force wait a step, and a contact may switch
+  // Friction corrections under 1% of the normal force wait a step, and a contact may switch
   // between sticking and sliding within the step's re-solves: a few ticks stay off.
   EXPECT_LE(p99, 0.03);
   EXPECT_GE(checked, 0.95 * slipping);
