@@ -282,6 +282,16 @@ def _record_and_replay(tmp_path):
     def series(s, t0, finger):
         return {round(t * 1000): f[finger] for t, d, f, c in s.window(t0, 0.5, 9.0)}
 
+    # How far apart the two fingers' commands were taken in each run, against the script's
+    # 3.5 s: the commands travel separately, and a gap between their arrivals is stretched by
+    # the stepped clock's speed. Printed so that a failure shows whether the pinch's fingers
+    # were out of step.
+    for name, run in (("recorded", a), ("replayed", b)):
+        f0 = run.onset(rest_of(run, 0), 0)
+        f1 = run.onset(rest_of(run, 1), 1)
+        if f0 is not None and f1 is not None:
+            print(f"{name}: finger 1 first moved {f1 - f0:.3f} s after finger 0 (script: "
+                  f"{FIRST_MOTION[1] - FIRST_MOTION[0]:.3f} s)")
     for finger in (0, 1):
         # The fingers moved the same way: device positions, each finger aligned on its own
         # first motion (each finger's command is taken on its own tick).
