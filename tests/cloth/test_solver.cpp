@@ -66,10 +66,9 @@ struct Reference {
   std::vector<double> b, x;
 };
 
-Reference cholmod_reference(const Sheet& sheet, std::mt19937& rng, double h) {
-  const auto s = random_state(sheet.model, rng, 0.005);
-  cloth::Integrator integ(sheet.model, cloth::IntegratorConfig{}, cloth::make_cholmod_solver());
-  Reference ref{integ.system_matrix(s, h, cloth::JacobianMode::Spd), {}, {}};
+// A random right-hand side for A and CHOLMOD's solution.
+Reference cholmod_reference(cloth::SymCsr A, std::mt19937& rng) {
+  Reference ref{std::move(A), {}, {}};
   ref.b.resize(ref.A.n);
   for (auto& v : ref.b) v = std::uniform_real_distribution<double>(-1, 1)(rng);
   ref.x.assign(ref.A.n, 0.0);
@@ -77,6 +76,18 @@ Reference cholmod_reference(const Sheet& sheet, std::mt19937& rng, double h) {
   chol->analyze(ref.A);
   EXPECT_EQ(chol->solve(ref.A, ref.b.data(), ref.x.data()), cloth::SolveStatus::Ok);
   return ref;
+}
+
+Reference cholmod_reference(const Sheet& sheet, std::mt19937& rng, double h) {
+  const auto s = random_state(sheet.model, rng, 0.005);
+  cloth::Integrator integ(sheet.model, cloth::IntegratorConfig{}, cloth::make_cholmod_solver());
+  return cholmod_reference(integ.system_matrix(s, h, cloth::JacobianMode::Spd), rng);
+}
+
+double max_abs(const std::vector<double>& x) {
+  double m = 0.0;
+  for (double v : x) m = std::max(m, std::abs(v));
+  return m;
 }
 
 }  // namespace
@@ -166,14 +177,11 @@ TEST(Solver, PcgWithContactHubsMatchesCholmod) {
       p.integ->point_springs().push_back(sp);
     }
   }
-  const cloth::SymCsr A = p.system_matrix();
-  std::vector<double> b(A.n), x_chol(A.n, 0.0);
-  for (auto& v : b) v = std::uniform_real_distribution<double>(-1, 1)(rng);
-  auto chol = cloth::make_cholmod_solver();
-  chol->analyze(A);
-  ASSERT_EQ(chol->solve(A, b.data(), x_chol.data()), cloth::SolveStatus::Ok);
-  double nrm = 0;
-  for (double v : x_chol) nrm = std::max(nrm, std::abs(v));
+  const Reference ref = cholmod_reference(p.system_matrix(), rng);
+  const cloth::SymCsr& A = ref.A;
+  const std::vector<double>& b = ref.b;
+  const std::vector<double>& x_chol = ref.x;
+  const double nrm = max_abs(x_chol);
   int iterations[2];
   for (bool hub : {false, true}) {
     cloth::PcgOptions po;
@@ -229,13 +237,10 @@ TEST(Solver, PcgSolveChangedReloadsTheChangedRows) {
     }
   std::sort(rows.begin(), rows.end());
   rows.erase(std::unique(rows.begin(), rows.end()), rows.end());
-  std::vector<double> b(A1.n), x_chol(A1.n, 0.0);
-  for (auto& v : b) v = std::uniform_real_distribution<double>(-1, 1)(rng);
-  auto chol = cloth::make_cholmod_solver();
-  chol->analyze(A1);
-  ASSERT_EQ(chol->solve(A1, b.data(), x_chol.data()), cloth::SolveStatus::Ok);
-  double nrm = 0;
-  for (double v : x_chol) nrm = std::max(nrm, std::abs(v));
+  const Reference ref = cholmod_reference(A1, rng);
+  const std::vector<double>& b = ref.b;
+  const std::vector<double>& x_chol = ref.x;
+  const double nrm = max_abs(x_chol);
   for (bool float_matrix : {false, true}) {
     cloth::PcgOptions po;
     po.tolerance = 1e-10;
