@@ -1,8 +1,8 @@
 // A haptic session: the global simulation and the 1 kHz haptic loop around one device.
-// Real time: two threads (haptic thread on absolute clock_nanosleep deadlines, or on the
-// device's samples with device_clock, SCHED_FIFO and mlockall when permitted; simulation thread at its own rate) exchanging state through
-// lock-free triple buffers. Stepped: both in one thread on a simulated clock, deterministic,
-// as fast as possible (tests, replays).
+// Real time: two threads (the haptic thread on absolute clock_nanosleep deadlines, or on the
+// device's samples with device_clock, SCHED_FIFO and mlockall when permitted; the simulation
+// thread at its own rate) exchanging state through lock-free triple buffers. Stepped: both in
+// one thread on a simulated clock, deterministic, as fast as possible (tests, replays).
 #pragma once
 
 #include <atomic>
