@@ -45,6 +45,7 @@ struct IntegratorEvents {
   std::uint64_t retries = 0;              ///< failed (sub)steps retried at half the step
   std::uint64_t restores = 0;             ///< steps abandoned: last good state restored, at rest
   std::uint64_t contact_revisions = 0;    ///< solves repeated because the contact set changed
+  std::uint64_t contact_line_cuts = 0;    ///< re-solves the line search took only part of
   std::uint64_t total() const {
     return non_finite + solver_not_converged + solver_error + not_positive_definite +
            jacobian_fallbacks + energy_explosions + alpha_fallbacks + retries + restores;
@@ -68,12 +69,22 @@ struct ProxyNode {
 /// A force between a material point of the cloth (weights b on the corners of triangle `tri`)
 /// and a proxy: f on the cloth at the start of the step (the proxy gets -f) and its stiffness
 /// K = -df/dx_point = df/dx_proxy (symmetric PSD), which enters eq. 9 like H.
+///
+/// A contact's spring is one-sided along its normal (`kn` > 0): of f and K, the part
+/// kn (depth0 - n . r) n, kn n n^T is a penalty that acts only while the point is inside
+/// (r: the point's displacement over the step relative to the proxy's). The rest (friction) acts
+/// whole. The active-set line search (Integrator::revise_contacts) uses it; `key` names the
+/// contact, and a contact owner lists its springs in ascending (proxy, key).
 struct PointSpring {
   int tri = 0;
   double b[3] = {0, 0, 0};
   int proxy = 0;
   Vec3 f = Vec3::Zero();
   Mat3 K = Mat3::Zero();
+  int key = -1;         ///< the contact's identity (>= 0 for a one-sided contact)
+  double kn = 0.0;      ///< N/m, normal penalty stiffness; 0: a two-sided spring
+  double depth0 = 0.0;  ///< m, depth along n at the start of the step
+  Vec3 n = Vec3::Zero();
 };
 
 /// The contact set's owner: after each solve of a (sub)step it sees the candidate end state and
@@ -83,9 +94,11 @@ class StepContacts {
  public:
   virtual ~StepContacts() = default;
   /// `x_new`: candidate end positions of all vertices; proxies hold their candidate
-  /// displacement. Returns true if the springs changed.
+  /// displacement. `short_of_solve`: the candidate is the active-set line search's point, short
+  /// of the last re-solve, where a released contact touches again (Integrator::revise_contacts).
+  /// Returns true if the springs (Integrator::point_springs) changed.
   virtual bool revise(const std::vector<Vec3>& x_new, const std::vector<ProxyNode>& proxies,
-                      std::vector<PointSpring>& springs) = 0;
+                      bool short_of_solve) = 0;
 };
 
 struct StepTiming {
@@ -156,6 +169,9 @@ class Integrator {
   bool slow_blow_up(double h);
   bool solve(const ClothState& s, double h);
   bool revise_contacts(const ClothState& s, double h);
+  bool line_search_contacts(const ClothState& s, double h);
+  double spring_depth(const PointSpring& sp, const ClothState& s, double h,
+                      const Eigen::VectorXd& dv) const;
   bool energy_explosion(const ClothState& s, double& work);
   void accept(ClothState& s, double h, double work);
   bool assemble(const ClothState& s, double h, JacobianMode mode);
@@ -185,6 +201,14 @@ class Integrator {
   std::vector<char> spring_row_marked_;  // per block row: in spring_rows_
   StepContacts* contacts_ = nullptr;
   Eigen::VectorXd rhs_, dv_, dv_prev_, guess_;  // dv_prev_: the solution before dv_
+  // line_search_contacts(): the segment's start and end, its direction, A times it
+  Eigen::VectorXd dv_from_, dv_full_, delta_, a_delta_;
+  struct DepthTerm {  // a one-sided contact along the line search: depth(t) = d + t dd
+    double kn, d, dd;
+    bool in_set;  // in the re-solved set (its linear spring is in the matrix) or released
+  };
+  std::vector<DepthTerm> ls_terms_;
+  std::vector<PointSpring> released_;  // contacts released by this step's re-solves, not back
   std::vector<Vec3> f_ext_;
   std::vector<Mat3> k_ext_;
   std::vector<Vec3> xn_, vn_;              // candidate state of a (sub)step

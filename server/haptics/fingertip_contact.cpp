@@ -20,8 +20,11 @@ constexpr double kPullDepth = 1e-6;  // m
 constexpr double kAddDepth = 5e-6;   // m
 // Re-solves of a step that may release contacts (see revise()).
 constexpr int kFreeRevisions = 12;
-// Steps up to this long defer their late friction corrections to the next step (see revise()).
-constexpr double kDeferFrictionStep = 2e-3;  // s
+// Steps up to this long are direct coupling's (the multirate path's global steps are 5-40 ms):
+// they defer their late friction corrections to the next step (revise()), their pressure law
+// stiffens with depth (linearize_pressure), their contacts are one-sided for the integrator's
+// line search (make_spring) and come back from a release with their state (add_contacts).
+constexpr double kShortStep = 2e-3;  // s
 // Released contacts and friction corrections ask for a re-solve once their forces add up to this
 // share of the finger's normal force; smaller ones take effect from the next step. 1% is the
 // bound the stroke's Coulomb friction is held to, and a tenth of the force a person can tell
@@ -65,6 +68,7 @@ FingertipContact::FingertipContact(const cloth::ClothModel& model,
     fing_[f].cand.resize(nt);
     fing_[f].now.reserve(1024);
     fing_[f].prev.reserve(1024);
+    fing_[f].gone.reserve(1024);
   }
   integ_.point_springs().reserve(2048);
   integ_.set_contacts(this);
@@ -151,6 +155,7 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
   Finger& F = fing_[f];
   F.prev.swap(F.now);
   F.now.clear();
+  F.gone.clear();
   const Vec3& p = integ_.proxies()[f].x;
   ensure_candidates(f, p, (proxy_at - p).norm() + h_ * vmax_);
   size_t j = 0;  // walks the last step's contacts (both lists ascend by sample id)
@@ -173,6 +178,7 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
       q.w = w;
       q.n = (x - p) / d;
       q.depth0 = depth;
+      linearize_pressure(q);
       q.x0 = x;
       q.anchor = x - p;
       while (j < F.prev.size() && F.prev[j].id < q.id) ++j;
@@ -187,18 +193,43 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
   }
 }
 
+// The contact pressure p(d) = kappa d (1 + d / d_s) over the sample's area w, linearized at the
+// start of the step by its secant: the stiffness kn = w p(d0) / d0 = kappa w (1 + d0 / d_s) and
+// the force f0 = kn d0, so the linear spring still lets go where the sphere's surface is. (The
+// tangent, w p'(d0), let go inside the sphere, d0^2 / (d_s + 2 d0) deep: the multirate path's
+// 20 ms pinch ended steps with the cloth 2.5 mm inside a fingertip.) A light touch feels the
+// linear law kappa d (within 5% at the drum's 0.013 mm, 20% at d_s / 5); deeper it stiffens, so
+// that a crease of a coarse mesh pressed at the device's force limit, which loads a line of
+// samples instead of an area, stays shallow (the random two-finger runs of
+// `hapticloth-bench stability`: 0.50 mm inside a fingertip with the linear law; docs/contact.md).
+// A sample still outside (d0 <= 0) takes the law's slope at contact, kappa w. The multirate
+// path's long steps keep the linear law: a sample pressed deeper within a 20-40 ms step is
+// held by the stiffness at its start, and with the secant of the stiffening law the 40 ms stroke
+// cell of the stability map went 3.7 mm into a fingertip (2 mm allowed).
+void FingertipContact::linearize_pressure(Sample& q) const {
+  const double kw = p_.pressure_stiffness * q.w, d = std::max(q.depth0, 0.0);
+  q.kn = h_ <= kShortStep ? kw * (1.0 + d / p_.stiffening_depth) : kw;
+  q.f0 = q.kn * q.depth0;
+}
+
 // The contact as a point spring (the cloth's side; the proxy gets minus it): the penalty
-// pressure kappa x depth over the sample's area along the sphere normal, and Coulomb friction:
-// a tangential spring to the anchor while it sticks, a force of mu x its normal force against
-// the slide while it slides. Linearized at the start of the step: K = kappa w n n^T, plus
-// kappa w (I - n n^T) while sticking.
+// pressure over the sample's area along the sphere normal (linearize_pressure), and Coulomb
+// friction: a tangential spring to the anchor while it sticks, a force of mu x its normal force
+// against the slide while it slides. K = kn n n^T, plus kappa w (I - n n^T) while sticking. In a
+// short step (direct coupling) it is one-sided for the integrator's line search: it acts while
+// its depth d0 - n . r > 0. The multirate path's long steps leave the line search off (kn 0
+// there): they revise their set as before.
 void FingertipContact::make_spring(int f, const Sample& q, cloth::PointSpring& sp) const {
   const double k = p_.pressure_stiffness * q.w;
   sp.tri = q.tri;
   for (int i = 0; i < 3; ++i) sp.b[i] = q.b[i];
   sp.proxy = f;
-  sp.f = k * q.depth0 * q.n;
-  sp.K = k * q.n * q.n.transpose();
+  sp.key = q.id;
+  sp.kn = h_ <= kShortStep ? q.kn : 0.0;
+  sp.depth0 = q.depth0;
+  sp.n = q.n;
+  sp.f = q.f0 * q.n;
+  sp.K = q.kn * q.n * q.n.transpose();
   if (q.sliding) {
     sp.f += q.slide;
     return;
@@ -213,7 +244,7 @@ void FingertipContact::decide_friction(int f, Sample& q) const {
   const double k = p_.pressure_stiffness * q.w;
   const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
   const Vec3 ft = -k * (Pt * (q.x0 - p0_[f] - q.anchor));
-  const double lim = p_.friction * std::max(k * q.depth0, 0.0);
+  const double lim = p_.friction * std::max(q.f0, 0.0);
   const double ftn = ft.norm();
   q.sliding = ftn > lim;
   q.slide = q.sliding && ftn > 0.0 ? Vec3(ft * (lim / ftn)) : Vec3::Zero();
@@ -222,7 +253,7 @@ void FingertipContact::decide_friction(int f, Sample& q) const {
 // The normal force of a contact's linearized spring at the end of the step (rel_step: the
 // point's motion relative to the proxy), N; negative if it would pull.
 double FingertipContact::normal_at_end(const Sample& q, const Vec3& rel_step) const {
-  return p_.pressure_stiffness * q.w * (q.depth0 - q.n.dot(rel_step));
+  return q.f0 - q.kn * q.n.dot(rel_step);
 }
 
 // Coulomb at the end of the solved step (rel_step: the point's motion relative to the proxy):
@@ -292,6 +323,7 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
       P.damping = 0.0;
       fing_[f].prev.clear();
       fing_[f].now.clear();
+      fing_[f].gone.clear();
       fing_[f].ncand = 0;
       fing_[f].query_extra = -1.0;
       seen_[f] = false;
@@ -345,6 +377,16 @@ bool FingertipContact::add_contacts(int f, const std::vector<Vec3>& x_new, const
       for (int i = 0; i < 3; ++i) q.b[i] = b[i];
       const Vec3 x1 = point(x_new, t, q.b);
       if (p_.radius - (x1 - p1).norm() <= kAddDepth) return;
+      // Released earlier in this short step: back with the friction state it had. Fresh, it
+      // would stick to where it was at the start, slide, be released and come back sticking
+      // again: the cycle a fast stroke's rim samples ran to the revision cap.
+      const auto back = std::find_if(F.gone.begin(), F.gone.end(), [&](const Sample& g) { return g.id == id; });
+      if (back != F.gone.end() && h_ <= kShortStep) {
+        F.now.push_back(*back);
+        F.gone.erase(back);
+        rejoin(F.now.back(), x1 - point(s0_->x, t, q.b) - (p1 - p0));
+        return;
+      }
       const Vec3 x = point(s0_->x, t, q.b);
       const double d = (x - p0).norm();
       if (d < 1e-12) return;
@@ -353,6 +395,7 @@ bool FingertipContact::add_contacts(int f, const std::vector<Vec3>& x_new, const
       q.w = w;
       q.n = (x - p0) / d;
       q.depth0 = p_.radius - d;
+      linearize_pressure(q);
       q.x0 = x;
       q.anchor = x - p0;
       decide_friction(f, q);
@@ -365,9 +408,43 @@ bool FingertipContact::add_contacts(int f, const std::vector<Vec3>& x_new, const
   return true;
 }
 
+// A released contact back in the set (rel: its point's motion relative to the proxy over the
+// solved step): a slide takes mu x its normal force there, not the force it had when released
+// (one touching again has almost none).
+void FingertipContact::rejoin(Sample& q, const Vec3& rel) const {
+  q.release = false;
+  if (!q.sliding) return;
+  const double lim = p_.friction * std::max(normal_at_end(q, rel), 0.0), sn = q.slide.norm();
+  q.slide = sn > 0.0 ? Vec3(q.slide * (lim / sn)) : Vec3::Zero();
+}
+
+// At the line search's point (short of a solve: Integrator::revise_contacts stopped the re-solve
+// where a released contact comes back to its surface), contacts released earlier in the step
+// whose linearized spring would push, or just touch, join the contacts again, with the state
+// they had: a tie that belongs in the set. Otherwise the set is unchanged there, and the step
+// ends at the re-solve with the contact back inside. Only there: re-added on every revision,
+// the ties of a slow stroke's rim left contacts with next to no normal force holding their
+// friction (the per-contact Coulomb error's p99 3.4%, its worst 31%). Returns true if any did.
+bool FingertipContact::restore_touching(int f, const std::vector<Vec3>& x_new, const Vec3& dp) {
+  Finger& F = fing_[f];
+  const size_t nold = F.now.size();
+  auto back = [&](Sample& q) {
+    const Vec3 rel = point(x_new, q.tri, q.b) - q.x0 - dp;
+    if (normal_at_end(q, rel) < -kPullDepth * q.kn) return false;
+    F.now.push_back(q);
+    rejoin(F.now.back(), rel);
+    return true;
+  };
+  F.gone.erase(std::remove_if(F.gone.begin(), F.gone.end(), back), F.gone.end());
+  if (F.now.size() == nold) return false;
+  const auto by_id = [](const Sample& a, const Sample& b) { return a.id < b.id; };
+  std::sort(F.now.begin() + nold, F.now.end(), by_id);
+  std::inplace_merge(F.now.begin(), F.now.begin() + nold, F.now.end(), by_id);
+  return true;
+}
+
 bool FingertipContact::revise(const std::vector<Vec3>& x_new,
-                              const std::vector<cloth::ProxyNode>& proxies,
-                              std::vector<cloth::PointSpring>&) {
+                              const std::vector<cloth::ProxyNode>& proxies, bool short_of_solve) {
   // The first kFreeRevisions re-solves of a step may release contacts; after them the
   // contact set only grows (friction is still revised), so no sample is left inside a sphere
   // at the end. Without that, a step whose new contacts start outside the sphere can cycle
@@ -378,13 +455,13 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
   // A short step (direct coupling) also defers its late friction corrections: a contact that
   // slides stays sliding, and magnitude changes wait for the next step, 1 ms later. Otherwise
   // contacts at the cone's edge flip between stick and slide until the revision cap, and the
-  // step ends before the samples that the last solve pushed inside are added (the random
-  // two-finger runs of `hapticloth-bench stability`: 0.47 and 0.52 mm inside a fingertip,
-  // 0.44 and 0.40 mm deferring). A long global step of the multirate path holds its friction
-  // state for the whole step and keeps revising it (deferring there let the 20 ms pinch carry
-  // 10% less than the weight).
+  // step ends before the samples that the last solve pushed inside are added. A long global
+  // step of the multirate path holds its friction state for the whole step and keeps revising
+  // it (deferring there let the 20 ms pinch carry 10% less than the weight). The integrator's
+  // line search keeps the re-solves from overshooting (Integrator::revise_contacts); contacts
+  // released earlier in the step come back with their state (add_contacts, restore_touching).
   const bool settle = revisions_ < kFreeRevisions;
-  const bool defer = !settle && h_ <= kDeferFrictionStep;
+  const bool defer = !settle && h_ <= kShortStep;
   ++revisions_;
   bool changed = false;
   for (int f = 0; f < fingers_; ++f) {
@@ -395,6 +472,7 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
     const Vec3 p1 = p0 + dp;
     ensure_candidates(f, p0, dp.norm() + h_ * vmax_);  // the solved step may reach further than foreseen
     if (F.ncand == 0 && F.now.empty()) continue;
+    const bool restored = short_of_solve && restore_touching(f, x_new, dp);
     // Contacts that would pull at the end of the step are released; points that would end
     // inside the sphere become contacts; Coulomb's law is checked on the solved step. The step
     // is solved again for every new contact, and for released contacts and friction
@@ -404,21 +482,22 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
     double pulled = 0.0, fchange = 0.0, fscale = 0.0;
     for (Sample& q : F.now) {
       const Vec3 rel = point(x_new, q.tri, q.b) - q.x0 - dp;
-      const double depth1 = q.depth0 - q.n.dot(rel);
       const double fn1 = normal_at_end(q, rel);
       fscale += std::max(fn1, 0.0);
-      q.release = settle && depth1 < -kPullDepth;
+      q.release = settle && fn1 < -kPullDepth * q.kn;
       if (q.release)
         pulled += -fn1;
       else
         fchange += revise_friction(q, p0, rel, defer);
     }
     const bool added = add_contacts(f, x_new, p0, p1);
-    changed = changed || added || pulled + fchange > kResolveShare * fscale + 1e-6;
+    changed = changed || restored || added || pulled + fchange > kResolveShare * fscale + 1e-6;
   }
   if (!changed) return false;
   for (int f = 0; f < fingers_; ++f) {
     auto& now = fing_[f].now;
+    for (const Sample& q : now)
+      if (q.release) fing_[f].gone.push_back(q);
     now.erase(std::remove_if(now.begin(), now.end(), [](const Sample& q) { return q.release; }), now.end());
   }
   rebuild_springs();

@@ -6,13 +6,14 @@
 // fingertip by the virtual coupling (spring and damper). The cloth's surface is sampled at
 // the nodes of a subdivision of each triangle, no more than `sample_spacing` apart (the
 // trapezoidal rule on the sub-triangles: vertices and edges are samples too); every sample
-// inside the sphere gets a one-sided penalty pressure kappa x depth over its area along the
-// sphere's normal, plus Coulomb friction (a tangential spring to an anchor on the sphere while
-// it sticks, mu x its normal force while it slips). Each contact is a
-// cloth::PointSpring: its stiffness is in the system matrix, so the light vertices under a
-// finger stay stable at dt 1 ms. After the solve, a contact that would pull is dropped, a sample
-// that would end inside the sphere is added, and Coulomb's law is checked on the solved step;
-// if the set changed, the step is solved again (active set).
+// inside the sphere gets a one-sided penalty pressure kappa d (1 + d / d_s) at depth d over its
+// area along the sphere's normal (linear in the multirate path's long steps), plus Coulomb
+// friction (a tangential spring to an anchor on the sphere while it sticks, mu x its normal
+// force while it slips). Each contact is a cloth::PointSpring: its stiffness is in the system
+// matrix, so the light vertices under a finger stay stable at dt 1 ms. After the solve, a
+// contact that would pull is dropped, a sample that would end inside the sphere is added, and
+// Coulomb's law is checked on the solved step; if the set changed, the step is solved again
+// (active set, with the integrator's line search in short steps).
 //
 // The force rendered to the user is minus the sum of the contact forces the cloth got in the
 // step, which is the coupling spring's force because the proxy is massless (Newton's third law,
@@ -37,6 +38,7 @@ struct ContactParams {
   double max_force = 0.0;             ///< N: the coupling spring asks no more (0 = no limit)
   double friction = 0.5;              ///< Coulomb coefficient per contact
   double pressure_stiffness = 3e9;    ///< Pa/m: contact pressure per metre of depth (kappa)
+  double stiffening_depth = 0.25e-3;  ///< m, d_s: the pressure kappa d (1 + d / d_s) stiffens past it
   double sample_spacing = 0.0;        ///< m between surface samples; 0 = radius / 8
   double margin = 0.01;               ///< m beyond the sphere searched for samples
 };
@@ -59,7 +61,7 @@ class FingertipContact final : public cloth::StepContacts {
   void begin_step(const cloth::ClothState& s, const std::array<FingerTarget, kMaxFingers>& in,
                   double h);
   bool revise(const std::vector<Vec3>& x_new, const std::vector<cloth::ProxyNode>& proxies,
-              std::vector<cloth::PointSpring>& springs) override;
+              bool short_of_solve) override;
   /// After the step (the new state `s`): the forces the cloth got, friction state, penetration.
   void end_step(const cloth::ClothState& s);
 
@@ -78,6 +80,7 @@ class FingertipContact final : public cloth::StepContacts {
     double w = 0.0;                // area, m^2
     Vec3 n = Vec3::Zero();         // unit normal from the sphere centre, at the start
     double depth0 = 0.0;           // depth at the start of the step (negative outside)
+    double f0 = 0.0, kn = 0.0;     // normal force (N) and stiffness (N/m) there: the law linearized
     Vec3 x0 = Vec3::Zero();        // point at the start
     Vec3 anchor = Vec3::Zero();    // friction anchor, relative to the proxy centre
     bool slipping = false;
@@ -89,6 +92,7 @@ class FingertipContact final : public cloth::StepContacts {
   };
   struct Finger {
     std::vector<Sample> now, prev;  // this step's contacts (sorted by id), last step's
+    std::vector<Sample> gone;       // contacts released by this step's re-solves
     std::vector<int> cand;          // candidate triangles (sized to the mesh: never overflows)
     int ncand = 0;
     // The query the candidates came from: its centre, its reach beyond the sphere, the broad
@@ -101,10 +105,13 @@ class FingertipContact final : public cloth::StepContacts {
   void ensure_candidates(int f, const Vec3& centre, double motion);
   void find_samples(int f, const cloth::ClothState& s, const Vec3& proxy_at);
   void make_spring(int f, const Sample& q, cloth::PointSpring& sp) const;
+  void linearize_pressure(Sample& q) const;
   void decide_friction(int f, Sample& q) const;
   void set_coupling_target(cloth::ProxyNode& P, const FingerTarget& device) const;
   double normal_at_end(const Sample& q, const Vec3& rel_step) const;
   bool add_contacts(int f, const std::vector<Vec3>& x_new, const Vec3& p0, const Vec3& p1);
+  bool restore_touching(int f, const std::vector<Vec3>& x_new, const Vec3& dp);
+  void rejoin(Sample& q, const Vec3& rel) const;
   double revise_friction(Sample& q, const Vec3& p0, const Vec3& rel_step, bool defer) const;
   template <class Fn>
   void for_samples_near(int t, const std::vector<Vec3>& x, const Vec3& c, double R, Fn&& fn) const;

@@ -248,6 +248,7 @@ SessionReport Session::report() const {
     r.contact_samples = c->active_samples();
   }
   r.contact_revisions = sim_->integrator().events().contact_revisions;
+  r.contact_line_cuts = sim_->integrator().events().contact_line_cuts;
   return r;
 }
 
@@ -268,8 +269,9 @@ std::string SessionReport::to_text() const {
      << max_force << " N\n";
   os << "narrow phase     skipped on " << narrow_phase_skipped << " ticks (no finger near the cloth)\n";
   os << "fingertip contact " << contact_samples << " sample-steps, " << contact_revisions
-     << " re-solves, deepest cloth point " << std::setprecision(3) << max_penetration * 1e3
-     << " mm inside a fingertip\n" << std::setprecision(1);
+     << " re-solves (" << contact_line_cuts << " cut short by the line search), deepest cloth point "
+     << std::setprecision(3) << max_penetration * 1e3 << " mm inside a fingertip\n"
+     << std::setprecision(1);
   if (patch_rebuilds > 0)
     os << "local patch      " << patch_rebuilds << " builds, " << patch_softened
        << " with springs softened to stay stable (material stiffer than max_substeps integrate), "
@@ -303,6 +305,7 @@ std::string SessionReport::to_json() const {
   j["device_errors"] = device_errors;
   j["contact_samples"] = contact_samples;
   j["contact_revisions"] = contact_revisions;
+  j["contact_line_cuts"] = contact_line_cuts;
   j["max_penetration_m"] = max_penetration;
   j["late_ticks"] = late_ticks;
   j["passivity_ticks"] = passivity_ticks;

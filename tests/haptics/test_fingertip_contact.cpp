@@ -3,9 +3,18 @@
 // from the cloth's momentum, and the depth of any cloth point inside a fingertip.
 #include <gtest/gtest.h>
 
+#include <array>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <numeric>
 
+#include "cloth/integrator.hpp"
+#include "cloth/mesh.hpp"
+#include "cloth/model.hpp"
+#include "cloth/solver.hpp"
+#include "haptics/fingertip_contact.hpp"
+#include "support/fixtures.hpp"
 #include "support/touch_scenes.hpp"
 
 using namespace hapticloth;
@@ -89,4 +98,104 @@ TEST(FingertipContact, PinchSlipsWhenFrictionCannotCarryTheWeight) {
   EXPECT_LE(std::abs(held.error()), 0.02);
   EXPECT_LE(held.centre_offset, 0.005);
   EXPECT_GT(slipped.centre_offset, 0.005);
+}
+
+// The pressure law against a rigid sphere on a rigid plane (every vertex pinned): the proxy
+// settles where the force it renders equals the law integrated over the contact disc. At
+// radius r on the plane the depth is u = R - sqrt(c^2 + r^2) (c = R - d, the centre's height),
+// so r dr = -(R - u) du, and the pressure acts along the sphere's normal, whose vertical share
+// is c / (R - u):
+//   F(d) = 2 pi c int_0^d p(u) du = 2 pi (R - d) kappa (d^2 / 2 + d^3 / (3 d_s)).
+// Light presses follow the linear law kappa d; at the device's 8 N the stiffening holds the
+// sphere shallower than the linear law would (0.32 mm).
+TEST(FingertipContact, PressOnARigidPlaneFollowsThePressureLaw) {
+  cloth::GridSpec g;
+  g.width = g.height = 0.03;
+  g.nx = g.ny = 30;
+  g.origin = {-0.015, -0.015, 0.0};
+  const cloth::Mesh mesh = cloth::make_grid(g);
+  std::vector<int> pins(mesh.positions.size());
+  std::iota(pins.begin(), pins.end(), 0);
+  const cloth::ClothModel m = cloth::build_model(mesh, test::denim(), pins);
+  cloth::IntegratorConfig cfg;
+  cfg.gravity.setZero();
+  cfg.proxies = 2;  // the second finger has no device sample: it touches nothing
+  cloth::Integrator integ(m, cfg, cloth::make_cholmod_solver());
+  haptics::ContactParams p;
+  p.friction = 0.0;
+  p.sample_spacing = 0.2e-3;  // a fine quadrature of the 1.5-2.5 mm contact disc
+  haptics::FingertipContact tips(m, m.triangles, 2, p, integ);
+  cloth::ClothState s = cloth::rest_state(m);
+  const double R = p.radius, kappa = p.pressure_stiffness, ds = p.stiffening_depth;
+  auto law = [&](double d) { return 2.0 * M_PI * (R - d) * kappa * (d * d / 2 + d * d * d / (3 * ds)); };
+  double last_depth = 0.0;
+  for (const double ask : {0.5, 2.0, 8.0}) {
+    std::array<haptics::FingerTarget, haptics::kMaxFingers> in{};
+    in[0] = {true, haptics::Vec3(0.0, 0.0, R - ask / p.coupling_stiffness), haptics::Vec3::Zero()};
+    for (int step = 0; step < 20; ++step) {
+      tips.begin_step(s, in, cfg.dt);
+      ASSERT_EQ(integ.step(s), cloth::StepOutcome::Accepted);
+      tips.end_step(s);
+    }
+    const haptics::ProxyResult& r = tips.result(0);
+    const double depth = R - r.proxy.z(), force = r.force.z();
+    const double linear_depth = std::sqrt(force / (M_PI * (R - depth) * kappa));
+    std::printf("coupling asks %.1f N: renders %.4f N at %.4f mm deep; the law there %.4f N (%+.2f%%); "
+                "the linear law would sit %.4f mm deep\n",
+                ask, force, depth * 1e3, law(depth), 100.0 * (force / law(depth) - 1.0), linear_depth * 1e3);
+    EXPECT_NEAR(force, law(depth), 0.005 * force);
+    EXPECT_NEAR(r.penetration, depth, 1e-6);  // the plane is the deepest point, at the pole
+    EXPECT_GT(depth, last_depth);
+    if (ask > 4.0) EXPECT_LT(depth, 0.8 * linear_depth);
+    last_depth = depth;
+  }
+}
+
+// A fingertip striking a drum at 2 m/s, obliquely, and dragging through it at the device's 8 N
+// limit: every step's active set converges before the revision cap (released contacts keep
+// their friction state when they come back, and the line search of
+// Integrator::revise_contacts), no cloth point gets 0.5 mm inside the sphere, and every step
+// ends at a solve: the massless proxy is in force balance, its coupling force (what the device
+// renders) equal to the contact forces the cloth got (Newton's third law, tick by tick).
+TEST(FingertipContact, FastStrikeConvergesWithTheClothOutside) {
+  const cloth::ClothModel m = test::denim_drum(20, 0.3);
+  cloth::IntegratorConfig cfg;
+  cfg.proxies = 2;
+  cloth::Integrator integ(m, cfg, cloth::make_cholmod_solver());
+  haptics::ContactParams p;
+  p.friction = 0.6;
+  p.max_force = 8.0;
+  haptics::FingertipContact tips(m, m.triangles, 2, p, integ);
+  cloth::ClothState s = cloth::rest_state(m);
+  const haptics::Vec3 v(1.2, 0.4, -1.55);  // m/s, 2 m/s
+  haptics::Vec3 at(-0.06, -0.02, 0.03);
+  double deepest = 0.0, imbalance = 0.0;
+  int capped = 0, touching = 0;
+  for (int step = 0; step < 60; ++step) {
+    at += cfg.dt * v;
+    std::array<haptics::FingerTarget, haptics::kMaxFingers> in{};
+    in[0] = {true, at, v};
+    const auto before = integ.events().contact_revisions;
+    const haptics::Vec3 x0 = integ.proxies()[0].x;
+    tips.begin_step(s, in, cfg.dt);
+    ASSERT_EQ(integ.step(s), cloth::StepOutcome::Accepted);
+    tips.end_step(s);
+    const haptics::ProxyResult& r = tips.result(0);
+    capped += integ.events().contact_revisions - before >= static_cast<std::uint64_t>(cfg.max_contact_revisions);
+    touching += r.in_contact;
+    deepest = std::max(deepest, r.penetration);
+    if (step > 0) {  // the proxy starts at the fingertip on the first step
+      const haptics::Vec3 coupling = p.coupling_stiffness * (r.target - r.proxy) +
+                                     p.coupling_damping * (r.target_velocity - (r.proxy - x0) / cfg.dt);
+      imbalance = std::max(imbalance, (coupling + r.force).norm());
+    }
+  }
+  std::printf("%d steps in contact, %d at the revision cap, deepest cloth point %.3f mm inside, "
+              "%llu re-solves, largest proxy imbalance %.2e N\n",
+              touching, capped, deepest * 1e3, static_cast<unsigned long long>(integ.events().contact_revisions),
+              imbalance);
+  EXPECT_GT(touching, 20);
+  EXPECT_EQ(capped, 0);
+  EXPECT_LT(deepest, 0.5e-3);
+  EXPECT_LT(imbalance, 1e-6);
 }
