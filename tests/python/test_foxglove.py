@@ -224,12 +224,14 @@ def test_foxglove_client_sees_the_cloth_and_twenty_clients_come_and_go(tmp_path)
     assert seen["churn"] == {"clients": 20, "saw_cloth": 20}
     assert on["foxglove"]["messages"]["/cloth"] > 0
     # The baseline: the same session with nobody connecting, then the platform's own timer for
-    # as many ticks at the haptic thread's scheduling. This machine wakes a thread over 1 ms
-    # late now and then, idle or not, and a tick misses its deadline when such a wake-up hits
-    # it: both runs miss some. The clients may add no more than the two baselines' spread, and
-    # 10: starting the clients' process loads the kernel as no baseline does (a CI run on
-    # 2026-11-26: 8 missed with the clients, 0 without, the platform 1 wake-up over 1 ms).
-    # What it guards against is the serving holding the haptic thread up tick after tick.
+    # as many ticks at the haptic thread's scheduling. What this guards against is the serving
+    # holding the haptic thread up tick after tick: that moves the period error's p99, which
+    # may grow by no more than the platform's own p99, and misses deadlines by the hundreds. A
+    # count of missed deadlines against the baselines plus a few is not that test: this machine
+    # wakes a thread 1-9 ms late now and then, idle or not, and one such wake-up misses one to
+    # a dozen deadlines by where it lands (2026-11-26, a CI run and a local one: 8 and 14 missed
+    # with the clients, 0 without, the platform 1 wake-up over 1 ms both times; the period
+    # error p99 0.5 us with and without). So the count may reach 0.5% of the ticks (60 in 12 s).
     off = live_session(tmp_path, lambda url: None)
     t = subprocess.run([str(program("hapticloth-bench")), "timer", "--ticks", str(off["haptic_ticks"]), "--json"],
                        capture_output=True, text=True, timeout=off["haptic_ticks"] / 1000 + 60)
@@ -238,8 +240,8 @@ def test_foxglove_client_sees_the_cloth_and_twenty_clients_come_and_go(tmp_path)
           f"error p99 {on['period_error_us']['p99']} us; no clients: {off['missed_deadlines']} in "
           f"{off['haptic_ticks']}, p99 {off['period_error_us']['p99']} us; platform right after: "
           f"{platform['over_1ms']} wake-ups over 1 ms, p99 {platform['p99_us']:.1f} us")
-    allowed = 2 * max(off["missed_deadlines"], platform["over_1ms"]) + 10
-    assert on["missed_deadlines"] <= allowed, (on["missed_deadlines"], off["missed_deadlines"], platform)
+    assert on["period_error_us"]["p99"] <= off["period_error_us"]["p99"] + platform["p99_us"], (on, off, platform)
+    assert on["missed_deadlines"] <= on["haptic_ticks"] // 200, (on["missed_deadlines"], off["missed_deadlines"], platform)
 
 
 def test_bad_foxglove_options_are_named(tmp_path):
