@@ -138,7 +138,13 @@ class Integrator {
   /// both set by the caller before each step (capacity is the caller's: reserve it).
   std::vector<ProxyNode>& proxies() { return proxies_; }
   std::vector<PointSpring>& point_springs() { return springs_; }
-  void set_contacts(StepContacts* c) { contacts_ = c; }
+  /// The contact set's owner; reserve point_springs() first: the re-solves' copies of the set
+  /// are sized to it here, so they allocate nothing on the step.
+  void set_contacts(StepContacts* c) {
+    contacts_ = c;
+    springs_solved_.reserve(springs_.capacity());
+    released_.reserve(springs_.capacity());
+  }
 
   /// The proxies' response over the last accepted step, R_pq = h (alpha h k_q + c_q) [A^-1]_pq
   /// with the step's own matrix (eq. 9, the contacts as solved; a re-solve with the factor or

@@ -1,7 +1,7 @@
 // Collision broad phase over the deforming cloth: an FCL bounding-volume hierarchy (AABB,
 // refit bottom-up once a vertex has moved `refit_slack`; FCL's bottom-up refit is wrong for
 // OBBRSS, right for AABB and k-DOP, and AABB's, with 6 bounds a node against 18, is the
-// cheapest) queried with each fingertip's sphere grown by the displacement since the refit.
+// cheapest), walked with each fingertip's sphere grown by the displacement since the refit.
 #pragma once
 
 #include <array>
@@ -33,6 +33,7 @@ class BroadPhase {
   std::uint64_t refits() const { return refits_; }
 
  private:
+  static constexpr int kMaxDepth = 256;  // query_sphere()'s walk: FCL's median split is balanced
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::vector<Eigen::Vector3d> x_refit_;  // positions at the last refit

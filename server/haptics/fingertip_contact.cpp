@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -70,6 +71,7 @@ FingertipContact::FingertipContact(const cloth::ClothModel& model,
     fing_[f].prev.reserve(1024);
     fing_[f].gone.reserve(1024);
   }
+  merged_.reserve(1024);
   integ_.point_springs().reserve(2048);
   integ_.set_contacts(this);
 }
@@ -403,8 +405,7 @@ bool FingertipContact::add_contacts(int f, const std::vector<Vec3>& x_new, const
     });
   }
   if (F.now.size() == nold) return false;
-  std::inplace_merge(F.now.begin(), F.now.begin() + nold, F.now.end(),
-                     [](const Sample& a, const Sample& b) { return a.id < b.id; });
+  merge_added(F, nold);
   return true;
 }
 
@@ -437,10 +438,20 @@ bool FingertipContact::restore_touching(int f, const std::vector<Vec3>& x_new, c
   };
   F.gone.erase(std::remove_if(F.gone.begin(), F.gone.end(), back), F.gone.end());
   if (F.now.size() == nold) return false;
-  const auto by_id = [](const Sample& a, const Sample& b) { return a.id < b.id; };
-  std::sort(F.now.begin() + nold, F.now.end(), by_id);
-  std::inplace_merge(F.now.begin(), F.now.begin() + nold, F.now.end(), by_id);
+  std::sort(F.now.begin() + nold, F.now.end(), [](const Sample& a, const Sample& b) { return a.id < b.id; });
+  merge_added(F, nold);
   return true;
+}
+
+// F.now's contacts from nold on (ascending by id) merged into those before them, through a buffer
+// reserved at construction: std::inplace_merge allocates one on every call (about ten a step
+// of a fast strike; test_fingertip_contact FastStrikeConvergesWithTheClothOutside).
+void FingertipContact::merge_added(Finger& F, size_t nold) {
+  merged_.clear();
+  std::merge(F.now.begin(), F.now.begin() + static_cast<std::ptrdiff_t>(nold),
+             F.now.begin() + static_cast<std::ptrdiff_t>(nold), F.now.end(), std::back_inserter(merged_),
+             [](const Sample& a, const Sample& b) { return a.id < b.id; });
+  F.now.swap(merged_);
 }
 
 bool FingertipContact::revise(const std::vector<Vec3>& x_new,

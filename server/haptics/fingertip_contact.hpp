@@ -111,6 +111,7 @@ class FingertipContact final : public cloth::StepContacts {
   double normal_at_end(const Sample& q, const Vec3& rel_step) const;
   bool add_contacts(int f, const std::vector<Vec3>& x_new, const Vec3& p0, const Vec3& p1);
   bool restore_touching(int f, const std::vector<Vec3>& x_new, const Vec3& dp);
+  void merge_added(Finger& F, size_t nold);
   void rejoin(Sample& q, const Vec3& rel) const;
   double revise_friction(Sample& q, const Vec3& p0, const Vec3& rel_step, bool defer) const;
   template <class Fn>
@@ -128,6 +129,7 @@ class FingertipContact final : public cloth::StepContacts {
   double spacing_;
   std::vector<int> sub_, first_;  // per triangle: subdivisions, first sample id
   std::array<Finger, kMaxFingers> fing_;
+  std::vector<Sample> merged_;  // merge_added()'s buffer
   std::array<ProxyResult, kMaxFingers> out_{};
   std::array<Vec3, kMaxFingers> last_disp_{};
   std::array<Vec3, kMaxFingers> p0_{};  // proxies at the start of the step

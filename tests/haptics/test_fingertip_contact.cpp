@@ -14,6 +14,7 @@
 #include "cloth/model.hpp"
 #include "cloth/solver.hpp"
 #include "haptics/fingertip_contact.hpp"
+#include "support/alloc_counter.hpp"
 #include "support/fixtures.hpp"
 #include "support/touch_scenes.hpp"
 
@@ -156,7 +157,10 @@ TEST(FingertipContact, PressOnARigidPlaneFollowsThePressureLaw) {
 // their friction state when they come back, and the line search of
 // Integrator::revise_contacts), no cloth point gets 0.5 mm inside the sphere, and every step
 // ends at a solve: the massless proxy is in force balance, its coupling force (what the device
-// renders) equal to the contact forces the cloth got (Newton's third law, tick by tick).
+// renders) equal to the contact forces the cloth got (Newton's third law, tick by tick). After
+// the first step (which sizes the solver's buffers) the contact steps allocate nothing: the
+// broad phase's walk, the contact lists and the re-solves' copies live in memory reserved at
+// construction.
 TEST(FingertipContact, FastStrikeConvergesWithTheClothOutside) {
   const cloth::ClothModel m = test::denim_drum(20, 0.3);
   cloth::IntegratorConfig cfg;
@@ -171,7 +175,9 @@ TEST(FingertipContact, FastStrikeConvergesWithTheClothOutside) {
   haptics::Vec3 at(-0.06, -0.02, 0.03);
   double deepest = 0.0, imbalance = 0.0;
   int capped = 0, touching = 0;
+  std::uint64_t allocations = 0;
   for (int step = 0; step < 60; ++step) {
+    const test::AllocationGuard guard;
     at += cfg.dt * v;
     std::array<haptics::FingerTarget, haptics::kMaxFingers> in{};
     in[0] = {true, at, v};
@@ -184,6 +190,7 @@ TEST(FingertipContact, FastStrikeConvergesWithTheClothOutside) {
     capped += integ.events().contact_revisions - before >= static_cast<std::uint64_t>(cfg.max_contact_revisions);
     touching += r.in_contact;
     deepest = std::max(deepest, r.penetration);
+    if (step > 0) allocations += guard.count();  // the first step sizes the solver's buffers
     if (step > 0) {  // the proxy starts at the fingertip on the first step
       const haptics::Vec3 coupling = p.coupling_stiffness * (r.target - r.proxy) +
                                      p.coupling_damping * (r.target_velocity - (r.proxy - x0) / cfg.dt);
@@ -191,11 +198,12 @@ TEST(FingertipContact, FastStrikeConvergesWithTheClothOutside) {
     }
   }
   std::printf("%d steps in contact, %d at the revision cap, deepest cloth point %.3f mm inside, "
-              "%llu re-solves, largest proxy imbalance %.2e N\n",
+              "%llu re-solves, largest proxy imbalance %.2e N, %llu allocations after the first step\n",
               touching, capped, deepest * 1e3, static_cast<unsigned long long>(integ.events().contact_revisions),
-              imbalance);
+              imbalance, static_cast<unsigned long long>(allocations));
   EXPECT_GT(touching, 20);
   EXPECT_EQ(capped, 0);
   EXPECT_LT(deepest, 0.5e-3);
   EXPECT_LT(imbalance, 1e-6);
+  EXPECT_EQ(allocations, 0u);  // the sim thread's hot path
 }
