@@ -728,7 +728,10 @@ double Integrator::spring_depth(const PointSpring& sp, const ClothState& s, doub
 // fingertips do in the multirate path's long steps). Returns true if the step was cut short of
 // the re-solve.
 bool Integrator::line_search_contacts(const ClothState& s, double h) {
-  if (alpha_ != 1.0) return false;
+  const auto one_sided = [](const PointSpring& sp) { return sp.kn > 0.0; };
+  if (alpha_ != 1.0 || (std::none_of(springs_.begin(), springs_.end(), one_sided) &&
+                        std::none_of(springs_solved_.begin(), springs_solved_.end(), one_sided)))
+    return false;
   // The contacts released by this step's re-solves so far (springs_solved_ less springs_,
   // added to those released before) stay in Phi: a re-solve without them must not push their
   // points back inside unseen, only to add them again two re-solves later.
@@ -753,19 +756,22 @@ bool Integrator::line_search_contacts(const ClothState& s, double h) {
   for (const PointSpring& sp : springs_)
     if (sp.kn > 0.0) add_term(sp, true);
   for (const PointSpring& sp : released_) add_term(sp, false);
-  delta_ = dv_ - dv_from_;
-  A_.multiply(delta_.data(), a_delta_.data());
-  const double dad = delta_.dot(a_delta_);
-  if (!(dad > 0.0)) return false;
-  auto slope = [&](double t) {
-    double g = (t - 1.0) * dad;
+  auto contacts_slope = [&](double t) {
+    double g = 0.0;
     for (const DepthTerm& c : ls_terms_) {
       const double d = c.d + t * c.dd;
       g += c.in_set ? -c.kn * std::min(0.0, d) * c.dd : c.kn * std::max(0.0, d) * c.dd;
     }
     return g;
   };
-  if (slope(1.0) <= 0.0 || slope(0.0) >= 0.0) return false;  // the whole step, or no descent along it
+  // At t = 1 the quadratic part is zero: most re-solves are taken whole without the product.
+  if (contacts_slope(1.0) <= 0.0) return false;
+  delta_ = dv_ - dv_from_;
+  A_.multiply(delta_.data(), a_delta_.data());
+  const double dad = delta_.dot(a_delta_);
+  if (!(dad > 0.0)) return false;
+  auto slope = [&](double t) { return (t - 1.0) * dad + contacts_slope(t); };
+  if (slope(0.0) >= 0.0) return false;  // no descent along it: the whole step
   double lo = 0.0, hi = 1.0;
   for (int it = 0; it < 30; ++it) {
     const double mid = 0.5 * (lo + hi);
