@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 
@@ -20,312 +21,74 @@ double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-constexpr double kInvSqrt2 = 0.70710678118654752440;
-
 // Adds the 3x3 block B at `offset` of a CSR value array whose rows are `stride` apart.
 inline void add_block(double* val, int offset, int stride, const Mat3& B) {
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) val[offset + r * stride + c] += B(r, c);
 }
 
-// Symmetric 3x3 as (xx, yy, zz, xy, xz, yz).
-struct Sym3 {
-  double m[6];
-};
-
-#define HC_INLINE inline __attribute__((always_inline))
-
-HC_INLINE void sym_set(Sym3& S, double c_id) {
-  S.m[0] = S.m[1] = S.m[2] = c_id;
-  S.m[3] = S.m[4] = S.m[5] = 0.0;
-}
-// S += c n n^T
-HC_INLINE void sym_rank1(Sym3& S, double c, const double n[3]) {
-  S.m[0] += c * n[0] * n[0];
-  S.m[1] += c * n[1] * n[1];
-  S.m[2] += c * n[2] * n[2];
-  S.m[3] += c * n[0] * n[1];
-  S.m[4] += c * n[0] * n[2];
-  S.m[5] += c * n[1] * n[2];
-}
-// The full 3x3, column-major.
-HC_INLINE void sym_full(const Sym3& S, double out[9]) {
-  out[0] = S.m[0]; out[4] = S.m[1]; out[8] = S.m[2];
-  out[1] = out[3] = S.m[3];
-  out[2] = out[6] = S.m[4];
-  out[5] = out[7] = S.m[5];
-}
-
-// The steps of the fused element pass (Integrator::assemble_elements), on plain arrays so that
-// the compiler keeps them in registers. Each is the algebra of evaluate_element, in the same
-// order of operations.
-
-// Eq. 3: U, V and the diagonals S = U + V, D = U - V of eq. 4, their lengths and directions,
-// and eq. 5: the rates U', V'.
-struct ElementFibres {
-  double Uv[3], Vv[3];              // U', V'
-  double qu, qv, qs, qd;            // |U|, |V|, |S|, |D|
-  double iu, iv, is, id;            // their inverses (0 for a collapsed fibre)
-  double nu[3], nv[3], ns[3], nd[3];  // unit vectors
-  double va[3], vb[3];              // d eps_uv / dU, d eps_uv / dV
-};
-
-HC_INLINE void element_fibres(const ElementRest& e, const Vec3* X, const Vec3* Vel,
-                              ElementFibres& f) {
-  const double* ru = e.ru;
-  const double* rv = e.rv;
-  const double* x0 = X[e.v[0]].data();
-  const double* x1 = X[e.v[1]].data();
-  const double* x2 = X[e.v[2]].data();
-  const double* v0 = Vel[e.v[0]].data();
-  const double* v1 = Vel[e.v[1]].data();
-  const double* v2 = Vel[e.v[2]].data();
-  double U[3], V[3], S[3], D[3];
-  for (int i = 0; i < 3; ++i) {
-    U[i] = ru[0] * x0[i] + ru[1] * x1[i] + ru[2] * x2[i];
-    V[i] = rv[0] * x0[i] + rv[1] * x1[i] + rv[2] * x2[i];
-    S[i] = U[i] + V[i];
-    D[i] = U[i] - V[i];
-    f.Uv[i] = ru[0] * v0[i] + ru[1] * v1[i] + ru[2] * v2[i];
-    f.Vv[i] = rv[0] * v0[i] + rv[1] * v1[i] + rv[2] * v2[i];
-  }
-  f.qu = std::sqrt(U[0] * U[0] + U[1] * U[1] + U[2] * U[2]);
-  f.qv = std::sqrt(V[0] * V[0] + V[1] * V[1] + V[2] * V[2]);
-  f.qs = std::sqrt(S[0] * S[0] + S[1] * S[1] + S[2] * S[2]);
-  f.qd = std::sqrt(D[0] * D[0] + D[1] * D[1] + D[2] * D[2]);
-  f.iu = f.qu > 0.0 ? 1.0 / f.qu : 0.0, f.iv = f.qv > 0.0 ? 1.0 / f.qv : 0.0;
-  f.is = f.qs > 0.0 ? 1.0 / f.qs : 0.0, f.id = f.qd > 0.0 ? 1.0 / f.qd : 0.0;
-  for (int i = 0; i < 3; ++i) {
-    f.nu[i] = U[i] * f.iu;
-    f.nv[i] = V[i] * f.iv;
-    f.ns[i] = S[i] * f.is;
-    f.nd[i] = D[i] * f.id;
-    f.va[i] = (f.ns[i] - f.nd[i]) * kInvSqrt2;
-    f.vb[i] = (f.ns[i] + f.nd[i]) * kInvSqrt2;
-  }
-}
-
-// Stress of each strain: the total (elastic + viscous), and the elastic law's tangent.
-struct ElementStress {
-  double t_uu, t_vv, t_uv;
-  double k_uu, k_vv, k_uv;
-};
-
-// Eq. 4 strains through the material laws, plus eq. 6 strain rates times the viscosities eta
-// (weft, warp, shear). Returns the element's elastic energy.
-template <bool kViscous>
-HC_INLINE double element_stress(const Material& mat, const double eta[3], double A,
-                                const ElementFibres& f, ElementStress& st) {
-  const double e_uu = f.qu - 1.0, e_vv = f.qv - 1.0, e_uv = (f.qs - f.qd) * kInvSqrt2;
-  double p_uu, s_uu, p_vv, s_vv, p_uv, s_uv;
-  mat.weft.evaluate_all(e_uu, p_uu, s_uu, st.k_uu);
-  mat.warp.evaluate_all(e_vv, p_vv, s_vv, st.k_vv);
-  mat.shear.evaluate_all(e_uv, p_uv, s_uv, st.k_uv);
-  const double energy = A * (p_uu + p_vv + p_uv);
-  double r_uu = 0.0, r_vv = 0.0, r_uv = 0.0;
-  if constexpr (kViscous) {
-    double du = 0, dv = 0, ds = 0, dd = 0;
-    for (int i = 0; i < 3; ++i) {
-      du += f.nu[i] * f.Uv[i];
-      dv += f.nv[i] * f.Vv[i];
-      ds += f.ns[i] * (f.Uv[i] + f.Vv[i]);
-      dd += f.nd[i] * (f.Uv[i] - f.Vv[i]);
-    }
-    r_uu = eta[0] * du;
-    r_vv = eta[1] * dv;
-    r_uv = eta[2] * (ds - dd) * kInvSqrt2;
-  }
-  st.t_uu = s_uu + r_uu, st.t_vv = s_vv + r_vv, st.t_uv = s_uv + r_uv;
-  return energy;
-}
-
-// Forces F_k = ru_k Fu + rv_k Fv (the exact gradient; eq. 7 for small shear).
-HC_INLINE void element_forces(double A, const ElementFibres& f, const ElementStress& st,
-                              double Fu[3], double Fv[3]) {
-  for (int i = 0; i < 3; ++i) {
-    Fu[i] = -A * (st.t_uu * f.nu[i] + st.t_uv * f.va[i]);
-    Fv[i] = -A * (st.t_vv * f.nv[i] + st.t_uv * f.vb[i]);
-  }
-}
-
-// The coefficients of the factored Jacobian, with the tangents and (for the geometric part) the
-// stresses clamped at zero in Spd mode: c_f = A g_f / q_f per fibre, and A ks.
-struct StiffnessCoefficients {
-  double ku, kv, cu, cv, cs, cd, Aks;
-};
-
-template <bool kSpd>
-HC_INLINE StiffnessCoefficients stiffness_coefficients(double A, const ElementFibres& f,
-                                                       const ElementStress& st) {
-  auto clamp = [](double c) { return (kSpd && c < 0.0) ? 0.0 : c; };
-  const double ku = clamp(st.k_uu), kv = clamp(st.k_vv), ks = clamp(st.k_uv);
-  const double cu = A * clamp(st.t_uu) * f.iu, cv = A * clamp(st.t_vv) * f.iv;
-  const double cs = A * clamp(st.t_uv * kInvSqrt2) * f.is, cd = A * clamp(-st.t_uv * kInvSqrt2) * f.id;
-  return StiffnessCoefficients{ku, kv, cu, cv, cs, cd, A * ks};
-}
-
-// W = (cs - cd) I - cs ns ns^T + cd nd nd^T + A ks a b^T, column-major.
-HC_INLINE void stiffness_w(const StiffnessCoefficients& k, const ElementFibres& f, double W[9]) {
-  const double cs = k.cs, cd = k.cd, Aks = k.Aks;
-  for (int c = 0; c < 3; ++c)
-    for (int r = 0; r < 3; ++r)
-      W[3 * c + r] = (r == c ? cs - cd : 0.0) - cs * f.ns[r] * f.ns[c] + cd * f.nd[r] * f.nd[c] +
-                     Aks * f.va[r] * f.vb[c];
-}
-
-// Right-hand side of eq. 9 per vertex, h (F_k - alpha h H v) = ru_k gu + rv_k gv, with
-// H v = ru_k hu + rv_k hv, hu = P U' + W V', hv = Q V' + W^T U'. Pinned neighbours' velocity
-// enters here, which is how their prescribed motion reaches the solve.
-HC_INLINE void element_rhs(double h, double ah, const ElementFibres& f, const double Fu[3],
-                           const double Fv[3], const double Pf[9], const double Qf[9],
-                           const double W[9], double gu[3], double gv[3]) {
-  for (int r = 0; r < 3; ++r) {
-    double su = 0.0, sv = 0.0;
-    for (int c = 0; c < 3; ++c) {
-      su += Pf[3 * c + r] * f.Uv[c] + W[3 * c + r] * f.Vv[c];
-      sv += Qf[3 * c + r] * f.Vv[c] + W[3 * r + c] * f.Uv[c];
-    }
-    gu[r] = h * (Fu[r] - ah * su);
-    gv[r] = h * (Fv[r] - ah * sv);
-  }
-}
-
-// System blocks alpha^2 h^2 H + alpha h C in the same factored form. C = A sum eta grad(eps)
-// grad(eps)^T: Pc = eta_u nu nu^T + eta_s a a^T, Qc = eta_v nv nv^T + eta_s b b^T, Wc = eta_s a b^T.
-template <bool kViscous>
-HC_INLINE void system_factors(double ah, double aahh, const double eta[3], double A,
-                              const ElementFibres& f, const double Pf[9], const double Qf[9],
-                              const double W[9], double Ps[9], double Qs[9], double Ws[9]) {
-  for (int i = 0; i < 9; ++i) {
-    Ps[i] = aahh * Pf[i];
-    Qs[i] = aahh * Qf[i];
-    Ws[i] = aahh * W[i];
-  }
-  if constexpr (kViscous) {
-    const double c1 = ah * A * eta[0], c2 = ah * A * eta[1], c3 = ah * A * eta[2];
-    for (int c = 0; c < 3; ++c)
-      for (int r = 0; r < 3; ++r) {
-        Ps[3 * c + r] += c1 * f.nu[r] * f.nu[c] + c3 * f.va[r] * f.va[c];
-        Qs[3 * c + r] += c2 * f.nv[r] * f.nv[c] + c3 * f.vb[r] * f.vb[c];
-        Ws[3 * c + r] += c3 * f.va[r] * f.vb[c];
-      }
-  }
-}
-
-// The element's share of eq. 9 at its free vertices (pinned ones have no row): right-hand
-// sides ru_k gu + rv_k gv, and blocks (k, l) = ru_k ru_l Ps + rv_k rv_l Qs + ru_k rv_l Ws +
-// rv_k ru_l Ws^T into the CSR values at `off` (k <= l formed; (l, k) written as the transpose).
-HC_INLINE void scatter(const ElementRest& e, const int* free_index, const std::array<int, 9>& off,
-                       const int* row_stride, const double gu[3], const double gv[3],
-                       const double Ps[9], const double Qs[9], const double Ws[9], double* rhs,
-                       double* Aval) {
-  const double* ru = e.ru;
-  const double* rv = e.rv;
-  int fk[3];
-  for (int k = 0; k < 3; ++k) {
-    fk[k] = free_index[e.v[k]];
-    if (fk[k] < 0) continue;
-    double* b = rhs + 3 * fk[k];
-    for (int r = 0; r < 3; ++r) b[r] += ru[k] * gu[r] + rv[k] * gv[r];
-  }
-  for (int k = 0; k < 3; ++k) {
-    if (fk[k] < 0) continue;
-    for (int l = k; l < 3; ++l) {
-      if (fk[l] < 0) continue;
-      const double c1 = ru[k] * ru[l], c2 = rv[k] * rv[l], c3 = ru[k] * rv[l], c4 = rv[k] * ru[l];
-      double blk[9];  // column-major
-      for (int c = 0; c < 3; ++c)
-        for (int r = 0; r < 3; ++r)
-          blk[3 * c + r] = c1 * Ps[3 * c + r] + c2 * Qs[3 * c + r] + c3 * Ws[3 * c + r] +
-                           c4 * Ws[3 * r + c];
-      double* dst = Aval + off[k * 3 + l];
-      const int sk = row_stride[fk[k]];
-      for (int r = 0; r < 3; ++r, dst += sk)
-        for (int c = 0; c < 3; ++c) dst[c] += blk[3 * c + r];
-      if (l != k) {
-        double* dt = Aval + off[l * 3 + k];
-        const int sl = row_stride[fk[l]];
-        for (int r = 0; r < 3; ++r, dt += sl)
-          for (int c = 0; c < 3; ++c) dt[c] += blk[3 * r + c];
-      }
-    }
-  }
-}
-
 }  // namespace
 
-// One pass over the elements for eq. 9: forces, the factored Jacobians (same algebra as
-// evaluate_element, which the finite-difference tests check; a test checks that this assembly
-// equals the one built from evaluate_element's blocks), the system blocks
-//   alpha^2 h^2 H_kl + alpha h C_kl
-// scattered into the CSR values, and the right-hand side h (F - alpha h H v).
+// One pass over the elements for eq. 9, kLanes elements at a time (element_lanes.hpp): forces,
+// the factored Jacobians, the system blocks alpha^2 h^2 H_kl + alpha h C_kl scattered into the
+// CSR values, and the right-hand side h (F - alpha h H v). Returns the elastic energy.
 template <bool kViscous, bool kSpd>
 double Integrator::assemble_elements(const ClothState& s, double h) {
-  const double a = alpha_, ah = a * h, aahh = a * a * h * h;
-  const Material& mat = model_.material;
-  const double eta[3] = {mat.weft.viscosity, mat.warp.viscosity, mat.shear.viscosity};
+  const StepFactors factors{h, alpha_};
+  const auto pass = [&](const std::vector<ElementGroup>& groups) {
+    ElementTerms terms;  // 4 kB on the stack of whichever thread runs the pass
+    double energy = 0.0;
+    for (const ElementGroup& g : groups) {
+      element_terms<kViscous, kSpd>(g, model_.material, s.x.data(), s.v.data(), factors, terms);
+      energy += scatter_terms(g, terms);
+    }
+    return energy;
+  };
+  if (!pool_) return pass(groups_);
+  // Two threads: the parts at once (disjoint rows), then the separators (groups_); the energy
+  // summed in the same order whichever thread took a part.
+  auto part = [&](int p) { part_energy_[p] = pass(part_groups_[p]); };
+  pool_->run(static_cast<int>(part_groups_.size()), part);
+  double e_el = 0.0;
+  for (double e : part_energy_) e_el += e;
+  return e_el + pass(groups_);
+}
+
+// A group's terms at its elements' free vertices (pinned ones have no row): the right-hand
+// sides, the blocks (k, l) for k <= l, and (l, k) as their transposes. Returns the group's
+// elastic energy.
+double Integrator::scatter_terms(const ElementGroup& g, const ElementTerms& terms) {
   double* const Aval = A_.val.data();
   double* const rhs = rhs_.data();
   const int* const free_index = model_.free_index.data();
-  const int* const row_stride = sys_.row_stride.data();
-  const Vec3* const X = s.x.data();
-  const Vec3* const Vel = s.v.data();
-  const auto& els = model_.elements;
-  const auto element = [&](int t) -> double {
-    const ElementRest& e = els[t];
-    ElementFibres f;
-    element_fibres(e, X, Vel, f);
-    ElementStress st;
-    const double energy = element_stress<kViscous>(mat, eta, e.area, f, st);
-    double Fu[3], Fv[3];
-    element_forces(e.area, f, st, Fu, Fv);
-    // Factored Jacobian (see ElementEval), with c_f = A g_f / q_f for each fibre:
-    //   P = (cu + cs + cd) I + (A ku - cu) nu nu^T - cs ns ns^T - cd nd nd^T + A ks a a^T
-    //   Q = (cv + cs + cd) I + (A kv - cv) nv nv^T - cs ns ns^T - cd nd nd^T + A ks b b^T
-    //   W = (cs - cd) I - cs ns ns^T + cd nd nd^T + A ks a b^T
-    // P and Q are formed here, not in a function of their own: moved out, GCC 12 vectorized
-    // this loop and fused other multiply-adds, which changed the last bit of the results.
-    const StiffnessCoefficients k = stiffness_coefficients<kSpd>(e.area, f, st);
-    Sym3 SD;  // -cs ns ns^T - cd nd nd^T
-    sym_set(SD, 0.0);
-    sym_rank1(SD, -k.cs, f.ns);
-    sym_rank1(SD, -k.cd, f.nd);
-    Sym3 P = SD, Q = SD;
-    for (int i = 0; i < 3; ++i) {
-      P.m[i] += k.cu + k.cs + k.cd;
-      Q.m[i] += k.cv + k.cs + k.cd;
+  double energy = 0.0;
+  for (int lane = 0; lane < g.count; ++lane) {
+    energy += terms.energy[lane];
+    int fk[3];
+    for (int k = 0; k < 3; ++k) {
+      fk[k] = free_index[g.v[k][lane]];
+      if (fk[k] < 0) continue;
+      for (int r = 0; r < 3; ++r) rhs[3 * fk[k] + r] += terms.rhs[k][r][lane];
     }
-    sym_rank1(P, e.area * k.ku - k.cu, f.nu);
-    sym_rank1(P, k.Aks, f.va);
-    sym_rank1(Q, e.area * k.kv - k.cv, f.nv);
-    sym_rank1(Q, k.Aks, f.vb);
-    double W[9], Pf[9], Qf[9];
-    stiffness_w(k, f, W);
-    sym_full(P, Pf);
-    sym_full(Q, Qf);
-    double gu[3], gv[3];
-    element_rhs(h, ah, f, Fu, Fv, Pf, Qf, W, gu, gv);
-    double Ps[9], Qs[9], Ws[9];
-    system_factors<kViscous>(ah, aahh, eta, e.area, f, Pf, Qf, W, Ps, Qs, Ws);
-    scatter(e, free_index, sys_.block_offset[t], row_stride, gu, gv, Ps, Qs, Ws, rhs, Aval);
-    return energy;
-  };
-  double e_el = 0.0;
-  if (!pool_) {
-    for (int t = 0; t < static_cast<int>(els.size()); ++t) e_el += element(t);
-    return e_el;
+    const auto& off = sys_.block_offset[g.t[lane]];
+    for (int k = 0; k < 3; ++k) {
+      if (fk[k] < 0) continue;
+      for (int l = k; l < 3; ++l) {
+        if (fk[l] < 0) continue;
+        const Lanes* blk = terms.block[kPair[k][l]];
+        double* dst = Aval + off[k * 3 + l];
+        const int sk = sys_.row_stride[fk[k]];
+        for (int r = 0; r < 3; ++r, dst += sk)
+          for (int c = 0; c < 3; ++c) dst[c] += blk[3 * c + r][lane];
+        if (l == k) continue;
+        double* dt = Aval + off[l * 3 + k];
+        const int sl = sys_.row_stride[fk[l]];
+        for (int r = 0; r < 3; ++r, dt += sl)
+          for (int c = 0; c < 3; ++c) dt[c] += blk[3 * r + c][lane];
+      }
+    }
   }
-  // Two threads: the parts at once (disjoint rows), then the separators; the energy summed in
-  // the same order whichever thread took a part.
-  auto part = [&](int p) {
-    double sum = 0.0;
-    for (int t : partition_.parts[p]) sum += element(t);
-    part_energy_[p] = sum;
-  };
-  pool_->run(static_cast<int>(partition_.parts.size()), part);
-  for (double e : part_energy_) e_el += e;
-  for (int t : partition_.separators) e_el += element(t);
-  return e_el;
+  return energy;
 }
 
 void IntegratorConfig::validate() const {
@@ -354,9 +117,15 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
   if (cfg_.assembly_threads > 1 && model_.num_triangles() >= kMinParallelElements) {
     // Four parts for two threads: whichever thread is free takes the next, so a helper that
     // wakes late (or is preempted) costs part of a part, not half the assembly.
-    partition_ = partition_elements(model_.elements, model_.rest_positions, 4);
-    part_energy_.assign(partition_.parts.size(), 0.0);
+    const ElementPartition partition = partition_elements(model_.elements, model_.rest_positions, 4);
+    for (const auto& p : partition.parts) part_groups_.push_back(group_elements(model_.elements, p));
+    groups_ = group_elements(model_.elements, partition.separators);
+    part_energy_.assign(part_groups_.size(), 0.0);
     pool_ = std::make_unique<WorkerPool>();
+  } else {
+    std::vector<int> all(model_.num_triangles());
+    std::iota(all.begin(), all.end(), 0);
+    groups_ = group_elements(model_.elements, all);
   }
   A_ = sys_.csr;
   proxies_.assign(cfg_.proxies, ProxyNode{});

@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 
+#include "cloth/element_lanes.hpp"
 #include "cloth/element_partition.hpp"
 #include "cloth/model.hpp"
 #include "cloth/solver.hpp"
@@ -189,6 +190,7 @@ class Integrator {
   double contact_work(const ClothState& s) const;
   template <bool kViscous, bool kSpd>
   double assemble_elements(const ClothState& s, double h);  // returns the elastic energy
+  double scatter_terms(const ElementGroup& g, const ElementTerms& terms);
   bool state_finite(const ClothState& s) const;
 
   const ClothModel& model_;
@@ -229,8 +231,10 @@ class Integrator {
   double last_h_ = 0.0; // the last (sub)step solved
   std::vector<Eigen::VectorXd> response_;  // proxy_response(): A^-1 e per proxy dof (warm starts)
   Eigen::VectorXd unit_;
-  // Two-thread assembly (assembly_threads 2): the element parts, their energies, the helper.
-  ElementPartition partition_;
+  // The elements in groups of kLanes (assemble_elements): all of them, or with two threads
+  // (assembly_threads 2) the parts' and, in groups_, the separators; the parts' energies.
+  std::vector<ElementGroup> groups_;
+  std::vector<std::vector<ElementGroup>> part_groups_;
   std::vector<double> part_energy_;
   std::unique_ptr<WorkerPool> pool_;
 };

@@ -1,0 +1,65 @@
+// The element pass of eq. 9 on lanes: eqs. 3-7 and each element's terms of the system for
+// kLanes elements at once, in structure-of-arrays form, so that every operation of the element
+// algebra is one vector instruction for all of them. The integrator scatters the terms into its
+// matrix rows (Integrator::assemble_elements).
+//
+// Why lanes: the element algebra (four fibre lengths, three material laws, the factored
+// Jacobian and its nine system blocks) is a long chain of dependent scalar operations. One
+// element at a time it runs at about 100 ns on this machine, 0.10 ms of the 0.24 ms step of
+// the 968-triangle cloth (BENCHMARKS.md, "The element pass on lanes").
+#pragma once
+
+#include <vector>
+
+#include "cloth/element.hpp"
+#include "cloth/material.hpp"
+
+namespace hapticloth::cloth {
+
+inline constexpr int kLanes = 8;
+/// kLanes doubles as one vector (GCC vector extension: lowered to AVX-512, or to narrower
+/// registers where the CPU has none).
+using Lanes = double __attribute__((vector_size(8 * kLanes)));
+
+/// kLanes elements' rest data in lanes, and which elements they are. A list whose length is
+/// not a multiple of kLanes ends in a group whose last lanes repeat its last element; only the
+/// first `count` are real.
+struct ElementGroup {
+  int t[kLanes];         ///< element index
+  int v[3][kLanes];      ///< its corners
+  int count = 0;
+  Lanes ru[3], rv[3], area;
+};
+
+/// The groups of the elements `order` lists, in that order.
+std::vector<ElementGroup> group_elements(const std::vector<ElementRest>& elements,
+                                         const std::vector<int>& order);
+
+/// One group's terms of eq. 9, lane by lane: the right-hand side h (F_k - alpha h (H v)_k) of
+/// each corner k, and the blocks alpha^2 h^2 H_kl + alpha h C_kl for k <= l (pair index
+/// kPair[k][l]; (l, k) is the transpose), column-major.
+struct ElementTerms {
+  Lanes rhs[3][3];     ///< [corner][component]
+  Lanes block[6][9];   ///< [pair][3 * column + row]
+  Lanes energy;        ///< A (Psi_uu + Psi_vv + Psi_uv), J
+};
+inline constexpr int kPair[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
+
+struct StepFactors {
+  double h;       ///< the (sub)step, s
+  double alpha;   ///< implicitness (eq. 8)
+};
+
+/// The terms of every element of `g` at positions X and velocities V (whole-mesh arrays).
+/// kViscous: the strain-rate terms (eq. 6); kSpd: the Jacobian's negative parts clamped
+/// (JacobianMode::Spd). Same algebra as evaluate_element, which the finite-difference tests
+/// check (test_integrator's FusedAssembly holds the two together).
+template <bool kViscous, bool kSpd>
+void element_terms(const ElementGroup& g, const Material& mat, const Vec3* X, const Vec3* V,
+                   StepFactors f, ElementTerms& out);
+
+/// A material law on lanes: Psi, sigma and d sigma / d eps of StrainStressCurve::evaluate_all.
+void evaluate_lanes(const StrainStressCurve& c, Lanes eps, Lanes& psi, Lanes& sigma,
+                    Lanes& dsigma);
+
+}  // namespace hapticloth::cloth
