@@ -5,8 +5,9 @@
 //
 // Why lanes: the element algebra (four fibre lengths, three material laws, the factored
 // Jacobian and its nine system blocks) is a long chain of dependent scalar operations. One
-// element at a time it runs at about 100 ns on this machine, 0.10 ms of the 0.24 ms step of
-// the 968-triangle cloth (BENCHMARKS.md, "The element pass on lanes").
+// element at a time the pass took 0.130 ms of the 968-triangle cloth's 0.189 ms step; on
+// lanes it takes 0.080 ms, half of it the scatter (docs/performance.md, BENCHMARKS.md "Force
+// fidelity", 2026-11-26 night).
 #pragma once
 
 #include <vector>
