@@ -150,7 +150,6 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
   x_start_.assign(nv, Vec3::Zero());
   x_before_.assign(nv, Vec3::Zero());
   v_start_.assign(nv, Vec3::Zero());
-  solver_->share_pool(pool_.get());  // the PCG's passes on large meshes
   if (n > 0) solver_->analyze(A_);
 
   // Energy floor of the explosion test: the potential energy of the cloth over its own size,

@@ -5,7 +5,6 @@
 #include <string>
 
 #include "cloth/sparse.hpp"
-#include "cloth/worker_pool.hpp"
 
 namespace hapticloth::cloth {
 
@@ -35,9 +34,6 @@ class LinearSolver {
     (void)count;
     return solve(A, b, x);
   }
-  /// A helper thread the solver may share its work with (the integrator's, which it uses for
-  /// the element assembly just before each solve; null: none). Set before analyze().
-  virtual void share_pool(WorkerPool* pool) { (void)pool; }
   /// Iterations of the last solve (1 for a direct solve).
   int iterations() const { return iterations_; }
   /// Relative residual |b - A x| / |b| of the last solve (iterative solvers).
@@ -61,11 +57,6 @@ struct PcgOptions {
   /// 24 nodes), and every other node by its 3x3 diagonal block.
   bool hub_block = true;
 };
-
-/// Below this many block rows (vertices) the PCG's passes are not shared with a helper thread
-/// (LinearSolver::share_pool): at 2116 (the 4050-triangle square) a pass costs about what
-/// handing half of it over does, and the step's p99 rose from 1.1 to 1.8 ms (BENCHMARKS.md).
-inline constexpr int kMinParallelRows = 4000;
 
 /// Preconditioned conjugate gradients on Eigen vectors, with a 3x3 block-Jacobi
 /// preconditioner (plus the hub block, see PcgOptions), exactly-zero blocks left out of the

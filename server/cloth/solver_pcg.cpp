@@ -82,6 +82,12 @@ struct Bsr {
     hub_val.assign(kBlock * static_cast<std::size_t>(hub_blocks), T(0));
   }
 
+  void load(const SymCsr& A) {
+    const int nb = static_cast<int>(diag.size());
+    for (int br = 0; br < nb; ++br) load_row(A, br);
+    load_hubs(A);
+  }
+
   // The cloth blocks of block row br (none for a hub row).
   void load_row(const SymCsr& A, int br) {
     const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
@@ -121,14 +127,19 @@ struct Bsr {
     }
   }
 
-  // The cloth blocks of block rows [br0, br1): their y (0 for a hub row), and their share of
-  // x . y (the PCG step needs p . Ap; fused to save a pass). A row writes 4 lanes of y, the
-  // fourth 0, except the range's last, which writes 3: the next row may be another thread's.
-  double multiply_cloth(const double* x, double* y, int br0, int br1) const {
-    const T* b = val.data() + kBlock * rowptr[br0];
+  // y = A x, and returns x . y (the PCG step needs p . Ap; fused to save a pass). y must have
+  // one padding entry past its end (the last block row writes 4 lanes).
+  double multiply_dot(const double* x, double* y) const {
+    return multiply_cloth(x, y) + multiply_hubs(x, y);
+  }
+
+  // The cloth blocks: every block row's y (0 for a hub row), and x . y.
+  double multiply_cloth(const double* x, double* y) const {
+    const int nb = static_cast<int>(diag.size());
+    const T* b = val.data();
 #if defined(__AVX2__) && defined(__FMA__)
     __m256d dot = _mm256_setzero_pd();
-    for (int br = br0; br < br1; ++br) {
+    for (int br = 0; br < nb; ++br) {
       // Two accumulators: each block's product is an independent chain, only the sums chain.
       __m256d acc0 = _mm256_setzero_pd(), acc1 = _mm256_setzero_pd();
       const int kend = rowptr[br + 1];
@@ -154,13 +165,7 @@ struct Bsr {
         b += kBlock;
       }
       const __m256d yv = _mm256_add_pd(acc0, acc1);  // lane 3 is 0 (padding)
-      if (br + 1 < br1) {
-        _mm256_storeu_pd(y + 3 * br, yv);
-      } else {
-        alignas(32) double last[4];
-        _mm256_store_pd(last, yv);
-        std::copy(last, last + 3, y + 3 * br);
-      }
+      _mm256_storeu_pd(y + 3 * br, yv);
       // x's lane 3 belongs to the next row; the padded lane of yv is 0, so it adds nothing.
       dot = _mm256_fmadd_pd(_mm256_loadu_pd(x + 3 * br), yv, dot);
     }
@@ -169,7 +174,7 @@ struct Bsr {
     return (d[0] + d[1]) + (d[2] + d[3]);
 #else
     double dot = 0.0;
-    for (int br = br0; br < br1; ++br) {
+    for (int br = 0; br < nb; ++br) {
       double s0 = 0.0, s1 = 0.0, s2 = 0.0;
       for (int k = rowptr[br]; k < rowptr[br + 1]; ++k, b += kBlock) {
         const double* xc = x + xoff[k];
@@ -234,7 +239,6 @@ class PcgSolver final : public LinearSolver {
       throw std::invalid_argument("pcg: tolerance must be > 0 and max_iterations >= 1");
   }
   const char* name() const override { return "pcg"; }
-  void share_pool(WorkerPool* pool) override { pool_ = pool; }
 
   void analyze(const SymCsr& A) override {
     if (A.n % 3 != 0) throw std::invalid_argument("pcg: matrix size must be a multiple of 3");
@@ -259,7 +263,6 @@ class PcgSolver final : public LinearSolver {
     if (opt_.single_precision_matrix) mf_.build_pattern(A, hub_rows);
     md_.build_pattern(A, hub_rows);  // also the fallback of the float copy
     hubs_ = opt_.hub_block ? hub_rows : std::vector<int>{};
-    split_rows(nb);
     local_.assign(nb, -1);
     cluster_.clear();
     cluster_.reserve(kMaxCluster);
@@ -304,9 +307,9 @@ class PcgSolver final : public LinearSolver {
   SolveStatus run(Bsr<T>& M, const SymCsr& A, const double* b, double* x, bool load) {
     iterations_ = 0;
     residual_ = 0.0;
-    const int n = n_;
+    const int n = n_, nb = n_ / 3;
     if (load && !prepare(M, A)) return SolveStatus::NotPositiveDefinite;
-    return iterate(M, b, x, n);
+    return iterate(M, b, x, n, nb);
   }
 
   // A re-solve after a change in a few block rows: those rows reloaded and re-preconditioned,
@@ -325,7 +328,7 @@ class PcgSolver final : public LinearSolver {
     M.load_hubs(A);
     if (!hubs_.empty() && !factor_cluster(M, A)) return SolveStatus::NotPositiveDefinite;
     prepared_ = true;
-    return iterate(M, b, x, n_);
+    return iterate(M, b, x, n_, n_ / 3);
   }
 
   // The matrix copy, the block-Jacobi inverses and the hub block. False if a diagonal block or
@@ -333,17 +336,10 @@ class PcgSolver final : public LinearSolver {
   template <class T>
   bool prepare(Bsr<T>& M, const SymCsr& A) {
     prepared_ = false;
-    auto chunk = [&](int c) {  // part_a_[c]: 1 if every diagonal block is positive definite
-      part_a_[c] = 1.0;
-      for (int br = chunk_row_[c]; br < chunk_row_[c + 1]; ++br) {
-        M.load_row(A, br);
-        if (!invert_diagonal(A, br, M.diag[br])) part_a_[c] = 0.0;
-      }
-    };
-    for_chunks(chunk);
-    M.load_hubs(A);
-    for (std::size_t c = 0; c + 1 < chunk_row_.size(); ++c)
-      if (part_a_[c] == 0.0) return false;
+    const int nb = n_ / 3;
+    M.load(A);
+    for (int br = 0; br < nb; ++br)
+      if (!invert_diagonal(A, br, M.diag[br])) return false;
     if (!hubs_.empty() && !factor_cluster(M, A)) return false;
     prepared_ = true;
     return true;
@@ -375,70 +371,9 @@ class PcgSolver final : public LinearSolver {
     return true;
   }
 
-  // Runs fn(c) for every chunk of block rows, on two threads when there is a pool.
-  template <class F>
-  void for_chunks(F& fn) {
-    const int chunks = static_cast<int>(chunk_row_.size()) - 1;
-    if (pool_ && chunks > 1) {
-      pool_->run(chunks, fn);
-    } else {
-      for (int c = 0; c < chunks; ++c) fn(c);
-    }
-  }
-  // The chunks' partial sums, in chunk order whichever thread took a chunk.
-  double chunk_sum(const std::vector<double>& part) const {
-    double sum = 0.0;
-    for (std::size_t c = 0; c + 1 < chunk_row_.size(); ++c) sum += part[c];
-    return sum;
-  }
-
-  // y = A x, returning x . y.
+  // Preconditioned conjugate gradients from the guess in x, until |r| <= tolerance |b|.
   template <class T>
-  double product(const Bsr<T>& M, const double* x, double* y) {
-    auto chunk = [&](int c) { part_a_[c] = M.multiply_cloth(x, y, chunk_row_[c], chunk_row_[c + 1]); };
-    for_chunks(chunk);
-    return chunk_sum(part_a_) + M.multiply_hubs(x, y);
-  }
-
-  // x += alpha p, r -= alpha q and z = M^-1 r, returning r . z with r . r in `rr`.
-  double update(double* x, double alpha, double& rr) {
-    double* r = r_.data();
-    const double* p = p_.data();
-    const double* q = q_.data();
-    auto chunk = [&](int c) {
-      for (int i = 3 * chunk_row_[c]; i < 3 * chunk_row_[c + 1]; ++i) {
-        x[i] += alpha * p[i];
-        r[i] -= alpha * q[i];
-      }
-      part_a_[c] = precondition_rows(chunk_row_[c], chunk_row_[c + 1], part_b_[c]);
-    };
-    for_chunks(chunk);
-    rr = chunk_sum(part_b_);
-    return chunk_sum(part_a_) + precondition_cluster(rr);
-  }
-
-  // z = M^-1 r with the current r, returning r . z with r . r in `rr`.
-  double precondition(double& rr) {
-    auto chunk = [&](int c) { part_a_[c] = precondition_rows(chunk_row_[c], chunk_row_[c + 1], part_b_[c]); };
-    for_chunks(chunk);
-    rr = chunk_sum(part_b_);
-    return chunk_sum(part_a_) + precondition_cluster(rr);
-  }
-
-  // p = z + beta p.
-  void next_direction(double beta) {
-    double* p = p_.data();
-    const double* z = z_.data();
-    auto chunk = [&](int c) {
-      for (int i = 3 * chunk_row_[c]; i < 3 * chunk_row_[c + 1]; ++i) p[i] = z[i] + beta * p[i];
-    };
-    for_chunks(chunk);
-  }
-
-  // Preconditioned conjugate gradients from the guess in x, until |r| <= tolerance |b|. Each
-  // pass over the vectors runs by chunks of block rows (for_chunks).
-  template <class T>
-  SolveStatus iterate(const Bsr<T>& M, const double* b, double* x, int n) {
+  SolveStatus iterate(const Bsr<T>& M, const double* b, double* x, int n, int nb) {
     double bn2 = 0.0;
     for (int i = 0; i < n; ++i) bn2 += b[i] * b[i];
     if (!std::isfinite(bn2)) return SolveStatus::NumericalError;
@@ -451,43 +386,63 @@ class PcgSolver final : public LinearSolver {
     for (int i = 0; i < n; ++i) finite = finite && std::isfinite(x[i]);
     if (!finite) std::fill(x, x + n, 0.0);
     double* r = r_.data();
+    double* z = z_.data();
+    double* p = p_.data();
     double* q = q_.data();
     std::copy(x, x + n, x0_.data());  // padded copy of the guess for the product
-    product(M, x0_.data(), q);
+    M.multiply_dot(x0_.data(), q);
     for (int i = 0; i < n; ++i) r[i] = b[i] - q[i];
     const double goal2 = opt_.tolerance * opt_.tolerance * bn2;
     double rr;
-    double rz = precondition(rr);
+    double rz = precondition(r, z, nb, rr);
     if (rr <= goal2) {
       residual_ = std::sqrt(rr) / bnorm;
       return SolveStatus::Ok;
     }
-    std::copy(z_.begin(), z_.begin() + n, p_.begin());
+    std::copy(z, z + n, p);
     for (int it = 1; it <= opt_.max_iterations; ++it) {
-      const double pq = product(M, p_.data(), q);
+      const double pq = M.multiply_dot(p, q);
       iterations_ = it;
       if (!(pq > 0.0)) return std::isfinite(pq) ? SolveStatus::NotPositiveDefinite : SolveStatus::NumericalError;
-      const double rz_new = update(x, rz / pq, rr);
+      const double alpha = rz / pq;
+      for (int i = 0; i < n; ++i) {
+        x[i] += alpha * p[i];
+        r[i] -= alpha * q[i];
+      }
+      const double rz_new = precondition(r, z, nb, rr);
       if (!std::isfinite(rr)) return SolveStatus::NumericalError;
       if (rr <= goal2) {
         residual_ = std::sqrt(rr) / bnorm;
         return SolveStatus::Ok;
       }
-      next_direction(rz_new / rz);
+      const double beta = rz_new / rz;
+      for (int i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
       rz = rz_new;
     }
     residual_ = std::sqrt(rr) / bnorm;
     return SolveStatus::NotConverged;
   }
 
-  // z = M^-1 r on the block rows [br0, br1) outside the cluster (block-Jacobi: the 3x3
-  // diagonal blocks' inverses), returning their share of r . z with that of r . r in `rr`.
-  double precondition_rows(int br0, int br1, double& rr) {
-    const double* r = r_.data();
-    double* z = z_.data();
+  // z = M^-1 r, returning r . z, with r . r in `rr`, in one pass. M is block-Jacobi (the 3x3
+  // diagonal blocks' inverses) except on the cluster of hub rows and the nodes they touch, which
+  // is one dense block (factor_cluster).
+  double precondition(const double* r, double* z, int nb, double& rr) {
     double rz = 0.0;
     rr = 0.0;
-    for (int br = br0; br < br1; ++br) {
+    if (!cluster_.empty()) {
+      const int m = 3 * static_cast<int>(cluster_.size());
+      for (size_t a = 0; a < cluster_.size(); ++a)
+        for (int c = 0; c < 3; ++c) cz_[3 * a + c] = r[3 * cluster_[a] + c];
+      cholesky_solve(dense_.data(), m, cz_.data());
+      for (size_t a = 0; a < cluster_.size(); ++a)
+        for (int c = 0; c < 3; ++c) {
+          const int i = 3 * cluster_[a] + c;
+          z[i] = cz_[3 * a + c];
+          rz += r[i] * z[i];
+          rr += r[i] * r[i];
+        }
+    }
+    for (int br = 0; br < nb; ++br) {
       if (local_[br] >= 0) continue;
       const double* m = inv_.data() + 9 * br;
       const double r0 = r[3 * br], r1 = r[3 * br + 1], r2 = r[3 * br + 2];
@@ -500,27 +455,6 @@ class PcgSolver final : public LinearSolver {
       rz += r0 * z0 + r1 * z1 + r2 * z2;
       rr += r0 * r0 + r1 * r1 + r2 * r2;
     }
-    return rz;
-  }
-
-  // z = M^-1 r on the cluster of hub rows and the nodes they touch, one dense block
-  // (factor_cluster): returns its share of r . z and adds its r . r to `rr`.
-  double precondition_cluster(double& rr) {
-    if (cluster_.empty()) return 0.0;
-    const double* r = r_.data();
-    double* z = z_.data();
-    double rz = 0.0;
-    const int m = 3 * static_cast<int>(cluster_.size());
-    for (size_t a = 0; a < cluster_.size(); ++a)
-      for (int c = 0; c < 3; ++c) cz_[3 * a + c] = r[3 * cluster_[a] + c];
-    cholesky_solve(dense_.data(), m, cz_.data());
-    for (size_t a = 0; a < cluster_.size(); ++a)
-      for (int c = 0; c < 3; ++c) {
-        const int i = 3 * cluster_[a] + c;
-        z[i] = cz_[3 * a + c];
-        rz += r[i] * z[i];
-        rr += r[i] * r[i];
-      }
     return rz;
   }
 
@@ -593,23 +527,6 @@ class PcgSolver final : public LinearSolver {
     }
   }
 
-  // The passes' chunks of block rows: one, or on a mesh of kMinParallelRows and more eight of
-  // about equal numbers of blocks, so that whichever thread is free takes the next when the
-  // passes are shared (share_pool).
-  void split_rows(int nb) {
-    const int chunks = nb >= kMinParallelRows ? 8 : 1;
-    chunk_row_.assign(1, 0);
-    const std::vector<int>& rp = md_.rowptr;
-    for (int c = 1; c < chunks; ++c) {
-      const long long target = static_cast<long long>(rp[nb]) * c / chunks;
-      const int br = static_cast<int>(std::lower_bound(rp.begin(), rp.end(), target) - rp.begin());
-      chunk_row_.push_back(std::max(chunk_row_.back(), std::min(br, nb)));
-    }
-    chunk_row_.push_back(nb);
-    part_a_.assign(chunks, 0.0);
-    part_b_.assign(chunks, 0.0);
-  }
-
   static constexpr int kMaxCluster = 24;
   std::vector<int> hubs_, local_, cluster_;
   std::vector<std::pair<double, int>> weight_;
@@ -621,9 +538,6 @@ class PcgSolver final : public LinearSolver {
   std::vector<double> guess_;  // the starting guess, for the double solve after a float one
   int n_ = 0;
   std::vector<double> r_, z_, p_, q_, x0_, inv_;
-  WorkerPool* pool_ = nullptr;         // the integrator's helper thread, if shared
-  std::vector<int> chunk_row_;         // chunk c: block rows [chunk_row_[c], chunk_row_[c + 1])
-  std::vector<double> part_a_, part_b_;  // the chunks' partial sums
   Bsr<double> md_;
   Bsr<float> mf_;
 };

@@ -1,7 +1,5 @@
 #include "cloth/worker_pool.hpp"
 
-#include <chrono>
-
 namespace hapticloth::cloth {
 
 WorkerPool::WorkerPool() : thread_([this] { helper_loop(); }) {}
@@ -43,12 +41,6 @@ void WorkerPool::run_raw(int n, void (*fn)(void*, int), void* ctx) {
 void WorkerPool::helper_loop() {
   std::uint32_t seen = 0;
   for (;;) {
-    // A run that follows within kSpin of the last (the PCG's passes, a few us apart) finds the
-    // helper awake: waking it from the futex takes longer than such a pass.
-    const auto until = std::chrono::steady_clock::now() + kSpin;
-    while (generation_.load(std::memory_order_acquire) == seen &&
-           std::chrono::steady_clock::now() < until)
-      __builtin_ia32_pause();
     generation_.wait(seen, std::memory_order_acquire);
     seen = generation_.load(std::memory_order_acquire);
     if (stop_.load(std::memory_order_acquire)) return;

@@ -6,7 +6,6 @@
 #pragma once
 
 #include <atomic>
-#include <chrono>
 #include <cstdint>
 #include <thread>
 
@@ -27,8 +26,6 @@ class WorkerPool {
   std::uint64_t helper_share() const { return helper_done_.load(std::memory_order_relaxed); }
 
  private:
-  /// How long the helper spins for the next run before it sleeps.
-  static constexpr std::chrono::microseconds kSpin{50};
   template <class F>
   static void call(void* ctx, int i) {
     (*static_cast<F*>(ctx))(i);

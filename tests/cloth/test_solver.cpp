@@ -6,7 +6,6 @@
 #include <random>
 
 #include "cloth/integrator.hpp"
-#include "support/alloc_counter.hpp"
 #include "support/fixtures.hpp"
 
 using namespace hapticloth;
@@ -153,43 +152,6 @@ TEST(Solver, PcgMatchesCholmod) {
   const int cold = pcg->iterations();
   ASSERT_EQ(pcg->solve(A, b.data(), x2.data()), cloth::SolveStatus::Ok);
   EXPECT_LT(pcg->iterations(), cold);
-}
-
-// On a mesh of kMinParallelRows vertices and more, PCG shares each iteration's passes with a
-// helper thread when given one (the integrator's, LinearSolver::share_pool): by chunks of block
-// rows whose partial sums are added in chunk order, so the answer is CHOLMOD's and the same to
-// the bit whichever thread took which chunk; the helper takes part, and a solve allocates
-// nothing.
-TEST(Solver, PcgSharingAHelperThreadMatchesCholmod) {
-  Sheet sheet(64);
-  ASSERT_GE(sheet.model.num_free(), cloth::kMinParallelRows);
-  std::mt19937 rng(6);
-  const auto [A, b, x_chol] = cholmod_reference(sheet, rng, 0.01);
-  const double nrm = max_abs(x_chol);
-  cloth::WorkerPool pool;
-  std::vector<double> x[3];
-  int iterations[3];
-  for (int run = 0; run < 3; ++run) {  // one thread, then twice with the helper
-    auto pcg = cloth::make_pcg_solver({.tolerance = 1e-10, .max_iterations = 5000});
-    if (run > 0) pcg->share_pool(&pool);
-    pcg->analyze(A);
-    x[run].assign(A.n, 0.0);
-    ASSERT_EQ(pcg->solve(A, b.data(), x[run].data()), cloth::SolveStatus::Ok) << "run " << run;
-    iterations[run] = pcg->iterations();
-    double err = 0;
-    for (int i = 0; i < A.n; ++i) err = std::max(err, std::abs(x[run][i] - x_chol[i]));
-    EXPECT_LE(err, 1e-8 * nrm) << "run " << run;
-    if (run == 2) {
-      std::vector<double> again(A.n, 0.0);
-      test::AllocationGuard guard;
-      ASSERT_EQ(pcg->solve(A, b.data(), again.data()), cloth::SolveStatus::Ok);
-      EXPECT_EQ(guard.count(), 0u);
-    }
-  }
-  EXPECT_EQ(x[1], x[2]);
-  EXPECT_EQ(iterations[1], iterations[2]);
-  EXPECT_NEAR(iterations[1], iterations[0], 2);
-  EXPECT_GT(pool.helper_share(), 0u);
 }
 
 // Two proxies (the fingertips) pinch a patch of the sheet through stiff point springs: the
