@@ -77,6 +77,31 @@ TEST(ShippedFiles, HangingSquareScene) {
   EXPECT_NE(s.material_path.find("denim-handmade.toml"), std::string::npos);
 }
 
+// The real-time scene of a large cloth is the main job's session (cloth, device, script,
+// fingertips, coupling, preroll) on the 89 x 89 quad square, its assembly on one thread.
+TEST(ShippedFiles, HangingSquare16kHapticSceneIsTheMainJobOnALargeCloth) {
+  const auto main = load_scene(kSourceDir + "/tools/scenes/hanging_square.toml");
+  const auto big = load_scene(kSourceDir + "/tools/scenes/hanging_square_16k_haptic.toml");
+  EXPECT_EQ(big.name, "hanging_square_16k_haptic");
+  EXPECT_EQ(big.mesh.triangles.size(), 15842u);
+  EXPECT_EQ(big.mesh.positions.size(), 8100u);
+  EXPECT_EQ(big.pins.size(), 90u);
+  EXPECT_EQ(big.material_path, main.material_path);
+  EXPECT_DOUBLE_EQ(big.integrator.dt, main.integrator.dt);
+  EXPECT_EQ(big.solver, main.solver);
+  EXPECT_EQ(big.integrator.assembly_threads, 1);
+  ASSERT_TRUE(big.has_device);
+  EXPECT_EQ(big.device.driver, main.device.driver);
+  EXPECT_EQ(big.device.script, main.device.script);
+  EXPECT_EQ(big.device.fingers, main.device.fingers);
+  EXPECT_DOUBLE_EQ(big.device.max_force, main.device.max_force);
+  EXPECT_DOUBLE_EQ(big.haptics.finger.radius, main.haptics.finger.radius);
+  EXPECT_DOUBLE_EQ(big.haptics.finger.stiffness, main.haptics.finger.stiffness);
+  EXPECT_DOUBLE_EQ(big.haptics.finger.friction, main.haptics.finger.friction);
+  EXPECT_DOUBLE_EQ(big.preroll, main.preroll);
+  EXPECT_EQ(big.local_patch, "auto");
+}
+
 TEST_F(SceneFileTest, ValidSceneLoads) {
   const auto s = scene(kScene);
   EXPECT_EQ(s.name, "test scene");
