@@ -50,15 +50,18 @@ struct StrainStressCurve {
 };
 
 namespace detail {
-// The spline proper for e >= 0 (appendix A.2): Psi, sigma, d sigma / d eps.
-inline void spline_all(const StrainStressCurve& c, double e, double& psi, double& s, double& ds) {
+// The spline proper for e >= 0 (appendix A.2): Psi, sigma, d sigma / d eps. T is double, or
+// lanes of doubles (cloth/element_lanes: a GCC vector, whose comparisons and ?: go lane by
+// lane). A segment adds nothing where e is below its knot.
+template <class T>
+inline void spline_all(const StrainStressCurve& c, T e, T& psi, T& s, T& ds) {
   const auto& b0 = c.B[0];
   s = b0[0] + e * (b0[1] + e * (b0[2] + e * b0[3]));
   ds = b0[1] + e * (2.0 * b0[2] + 3.0 * e * b0[3]);
   psi = e * (b0[0] + e * (0.5 * b0[1] + e * (b0[2] * (1.0 / 3.0) + 0.25 * e * b0[3])));
   for (int i = 1; i < c.segments; ++i) {
-    const double d = e - c.knots[i];
-    if (d <= 0.0) break;  // knots increase: no later segment is active either
+    const T past = e - c.knots[i];
+    const T d = past > T{} ? past : T{};
     const auto& bi = c.B[i];
     s += d * d * (bi[2] + d * bi[3]);
     ds += d * (2.0 * bi[2] + 3.0 * d * bi[3]);
@@ -81,10 +84,10 @@ inline void StrainStressCurve::evaluate_all(double eps, double& psi, double& s, 
     sign = -1.0;
   }
   if (e <= max_strain) {
-    detail::spline_all(*this, e, psi, s, ds);
+    detail::spline_all<double>(*this, e, psi, s, ds);
   } else {  // linear continuation beyond the validated range (C1)
     double pm, sm, km;
-    detail::spline_all(*this, max_strain, pm, sm, km);
+    detail::spline_all<double>(*this, max_strain, pm, sm, km);
     const double d = e - max_strain;
     s = sm + km * d;
     ds = km;

@@ -33,22 +33,6 @@ HC_INLINE Lanes dot(const Vec3L& a, const Vec3L& b) {
   return a.c[0] * b.c[0] + a.c[1] * b.c[1] + a.c[2] * b.c[2];
 }
 
-// The spline proper for e >= 0 (detail::spline_all on lanes): a later segment adds nothing
-// where e is below its knot.
-HC_INLINE void spline_lanes(const StrainStressCurve& c, Lanes e, Lanes& psi, Lanes& s, Lanes& ds) {
-  const auto& b0 = c.B[0];
-  s = b0[0] + e * (b0[1] + e * (b0[2] + e * b0[3]));
-  ds = b0[1] + e * (2.0 * b0[2] + 3.0 * e * b0[3]);
-  psi = e * (b0[0] + e * (0.5 * b0[1] + e * (b0[2] * (1.0 / 3.0) + 0.25 * e * b0[3])));
-  for (int i = 1; i < c.segments; ++i) {
-    const Lanes d = max0(e - c.knots[i]);
-    const auto& bi = c.B[i];
-    s += d * d * (bi[2] + d * bi[3]);
-    ds += d * (2.0 * bi[2] + 3.0 * d * bi[3]);
-    psi += d * d * d * (bi[2] * (1.0 / 3.0) + 0.25 * d * bi[3]);
-  }
-}
-
 }  // namespace
 
 void evaluate_lanes(const StrainStressCurve& c, Lanes eps, Lanes& psi, Lanes& s, Lanes& ds) {
@@ -61,7 +45,7 @@ void evaluate_lanes(const StrainStressCurve& c, Lanes eps, Lanes& psi, Lanes& s,
   const Lanes ec = vmin(e, splat(c.max_strain));
   const Lanes d = e - ec;
   Lanes p0, s0, k0;
-  spline_lanes(c, ec, p0, s0, k0);
+  detail::spline_all<Lanes>(c, ec, p0, s0, k0);
   s = s0 + k0 * d;
   ds = k0;
   psi = p0 + d * (s0 + 0.5 * k0 * d);
