@@ -43,6 +43,7 @@ RunSummary run_headless(const Scene& scene, long steps) {
   r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
   r.scene = scene.name;
   r.solver = integ->solver().name();
+  if (r.solver == "pcg") r.preconditioner = cloth::to_string(scene.pcg.preconditioner);
   r.triangles = model.num_triangles();
   r.vertices = model.num_vertices();
   r.dt = scene.integrator.dt;
@@ -81,6 +82,7 @@ std::string RunSummary::to_json() const {
   nlohmann::json j;
   j["scene"] = scene;
   j["solver"] = solver;
+  if (!preconditioner.empty()) j["preconditioner"] = preconditioner;
   j["triangles"] = triangles;
   j["vertices"] = vertices;
   j["dt"] = dt;
@@ -107,7 +109,8 @@ std::string RunSummary::to_text() const {
   os << "scene            " << scene << " (" << triangles << " triangles, " << vertices
      << " vertices)\n";
   os << "integrator       dt " << std::setprecision(4) << dt * 1e3 << " ms, alpha "
-     << std::setprecision(2) << alpha << ", solver " << solver << "\n";
+     << std::setprecision(2) << alpha << ", solver " << solver
+     << (preconditioner.empty() ? "" : " (" + preconditioner + ")") << "\n";
   os << "steps            " << steps << " (" << std::setprecision(3) << simulated_s
      << " s simulated in " << wall_s << " s)\n";
   os << "ms per step      median " << std::setprecision(4) << step_ms.median << ", p99 "

@@ -18,6 +18,7 @@ Percentiles percentiles(std::vector<double> v);
 
 struct RunSummary {
   std::string scene, solver;
+  std::string preconditioner;  ///< the PCG's ("ssor", "block-jacobi"); empty for a direct solver
   int triangles = 0, vertices = 0;
   double dt = 0, alpha = 0, simulated_s = 0;
   long steps = 0;

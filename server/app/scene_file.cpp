@@ -290,7 +290,7 @@ void load_physics(const TomlFile& f, const toml::table& ph, Scene& s) {
 
 void load_integrator(const TomlFile& f, const toml::table& it, Scene& s) {
   f.only_keys(it, "integrator", {"dt", "alpha", "solver", "jacobian", "pcg_tolerance",
-                                 "pcg_max_iterations", "pcg_float_matrix", "max_halvings",
+                                 "pcg_max_iterations", "pcg_float_matrix", "pcg_preconditioner", "max_halvings",
                                  "explosion_ratio", "threads"});
   auto& c = s.integrator;
   c.dt = f.number(it, "integrator", "dt", c.dt);
@@ -314,6 +314,11 @@ void load_integrator(const TomlFile& f, const toml::table& it, Scene& s) {
       f.boolean(it, "integrator", "pcg_float_matrix", s.pcg.single_precision_matrix);
   if (s.pcg.max_iterations < 1)
     f.fail(it.get("pcg_max_iterations"), "integrator.pcg_max_iterations", "must be >= 1");
+  const std::string pre =
+      f.string(it, "integrator", "pcg_preconditioner", std::string(cloth::to_string(s.pcg.preconditioner)));
+  if (pre == "ssor") s.pcg.preconditioner = cloth::PcgPreconditioner::Ssor;
+  else if (pre == "block-jacobi") s.pcg.preconditioner = cloth::PcgPreconditioner::BlockJacobi;
+  else f.fail(it.get("pcg_preconditioner"), "integrator.pcg_preconditioner", "must be \"ssor\" or \"block-jacobi\"");
   c.max_halvings = static_cast<int>(f.integer(it, "integrator", "max_halvings", c.max_halvings));
   if (c.max_halvings < 0 || c.max_halvings > 20)
     f.fail(it.get("max_halvings"), "integrator.max_halvings", "must be in [0, 20]");

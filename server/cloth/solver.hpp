@@ -44,6 +44,19 @@ class LinearSolver {
   double residual_ = 0.0;
 };
 
+/// The PCG's preconditioner. Both treat the fingertip proxies with the vertices they touch as
+/// one dense block (PcgOptions::hub_block).
+enum class PcgPreconditioner {
+  /// The 3x3 diagonal blocks' inverses: cheap, but the cloth's smooth modes (a 16k-triangle
+  /// square at dt 1 ms: 24 iterations a step at tolerance 1e-3) converge slowly.
+  BlockJacobi,
+  /// Symmetric block Gauss-Seidel (SSOR with omega = 1) by Eisenstat's trick: an iteration reads
+  /// the matrix once, as block-Jacobi's does, in two sweeps; 2.5x fewer iterations (9 on the
+  /// same square; 22 -> 9.5 on the pinched 4050-triangle square).
+  Ssor,
+};
+const char* to_string(PcgPreconditioner p);
+
 struct PcgOptions {
   double tolerance = 1e-6;  ///< relative residual |r| / |b|
   int max_iterations = 500;
@@ -56,9 +69,10 @@ struct PcgOptions {
   /// together with the nodes their non-zero blocks reach as one dense block (Cholesky, at most
   /// 24 nodes), and every other node by its 3x3 diagonal block.
   bool hub_block = true;
+  PcgPreconditioner preconditioner = PcgPreconditioner::Ssor;
 };
 
-/// Preconditioned conjugate gradients on Eigen vectors, with a 3x3 block-Jacobi
+/// Preconditioned conjugate gradients on Eigen vectors, with an SSOR or 3x3 block-Jacobi
 /// preconditioner (plus the hub block, see PcgOptions), exactly-zero blocks left out of the
 /// product, warm start from the guess in x, and preallocated workspace (Eigen's
 /// ConjugateGradient allocates its work vectors on every call, which the 1 kHz path must not).

@@ -138,6 +138,8 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
       {"AlphaOutOfRange", with_line(kScene, 14, "alpha = 0.3"), 14, {"key 'integrator.alpha'", "[0.5, 1]"}},
       {"ZeroTimeStep", with_line(kScene, 13, "dt = 0"), 13, {"key 'integrator.dt'", "must be > 0"}},
       {"UnknownSolver", with_line(kScene, 15, "solver = \"lu\""), 15, {"key 'integrator.solver'", "\"pcg\""}},
+      {"UnknownPreconditioner", kScene + "pcg_preconditioner = \"ilu\"\n", 16,
+       {"key 'integrator.pcg_preconditioner'", "\"ssor\" or \"block-jacobi\""}},
       {"UnknownMeshType", with_line(kScene, 5, "type = \"sphere\""), 5, {"key 'mesh.type'", "\"grid\" or \"obj\""}},
       {"ZeroResolution", with_line(kScene, 7, "resolution = [0, 5]"), 7, {"key 'mesh.resolution'", "[1, 2000]"}},
       {"UnknownPinEdge", with_line(kScene, 10, "edges = [\"middle\"]"), 10, {"key 'pins.edges'", "'middle'"}},
@@ -149,6 +151,13 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
   const auto path = (dir_ / "scene.toml").string();
   for (const BadFile& c : cases) expect_bad_file(c, path, [&] { scene(c.text); });
   EXPECT_NO_THROW(scene(kScene + "\n[haptics]\nlocal_patch = \"on\"\nlocal_model = \"patch\"\nkernel_radius = 0.02\n"));
+}
+
+TEST_F(SceneFileTest, PcgPreconditionerKey) {
+  using hapticloth::cloth::PcgPreconditioner;
+  EXPECT_EQ(scene(kScene).pcg.preconditioner, PcgPreconditioner::Ssor);
+  EXPECT_EQ(scene(kScene + "pcg_preconditioner = \"block-jacobi\"\n").pcg.preconditioner, PcgPreconditioner::BlockJacobi);
+  EXPECT_EQ(scene(kScene + "pcg_preconditioner = \"ssor\"\n").pcg.preconditioner, PcgPreconditioner::Ssor);
 }
 
 TEST_F(SceneFileTest, DeviceClockKey) {

@@ -212,7 +212,7 @@ TEST(IntegratorRecovery, SolverFailureRetriesWithSmallerSteps) {
   cfg.dt = 0.02;
   cloth::PcgOptions po;
   po.tolerance = 1e-6;
-  po.max_iterations = 25;
+  po.max_iterations = 14;  // SSOR: 20 converge at dt (block-Jacobi needed more than 25)
   cloth::Integrator integ(m, cfg, cloth::make_pcg_solver(po));
   cloth::ClothState s = smooth_start(m);
   for (int k = 0; k < 20; ++k) integ.step(s);

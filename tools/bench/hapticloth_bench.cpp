@@ -128,6 +128,9 @@ int main(int argc, char** argv) {
   step->add_option("--pcg-tolerance", tol, "relative residual of the PCG solve")
       ->check(opts::number_in(0.0, 1.0, true));
   step->add_option("--steps", steps, "number of steps from the rest state")->check(CLI::Range(1L, 100000000L));
+  std::string preconditioner;
+  step->add_option("--pcg-preconditioner", preconditioner, "ssor or block-jacobi (default: the scene's)")
+      ->check(CLI::IsMember({"ssor", "block-jacobi"}));
   int threads = 0;
   step->add_option("--threads", threads, "threads of the element assembly, 1 or 2 (default: the scene's)")
       ->check(CLI::Range(1, 2));
@@ -261,6 +264,8 @@ int main(int argc, char** argv) {
     if (dt > 0) scene.integrator.dt = dt;
     if (alpha > 0) scene.integrator.alpha = alpha;
     if (tol > 0) scene.pcg.tolerance = tol;
+    if (!preconditioner.empty())
+      scene.pcg.preconditioner = preconditioner == "ssor" ? cloth::PcgPreconditioner::Ssor : cloth::PcgPreconditioner::BlockJacobi;
     if (threads > 0) scene.integrator.assembly_threads = threads;
     scene.integrator.validate();
     if (pinch) {
