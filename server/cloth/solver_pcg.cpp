@@ -31,6 +31,26 @@ const char* to_string(PcgPreconditioner p) {
 
 namespace {
 
+// m = a^-1 by cofactors; false unless a is positive definite enough to pass det > 0, a00 > 0.
+inline __attribute__((always_inline)) bool inverse3(const double a[3][3], double m[3][3]) {
+  const double c00 = a[1][1] * a[2][2] - a[1][2] * a[2][1];
+  const double c01 = a[0][2] * a[2][1] - a[0][1] * a[2][2];
+  const double c02 = a[0][1] * a[1][2] - a[0][2] * a[1][1];
+  const double det = a[0][0] * c00 + a[1][0] * c01 + a[2][0] * c02;
+  if (!(det > 0.0) || !std::isfinite(det) || !(a[0][0] > 0.0)) return false;
+  const double id = 1.0 / det;
+  m[0][0] = c00 * id;
+  m[0][1] = c01 * id;
+  m[0][2] = c02 * id;
+  m[1][0] = (a[1][2] * a[2][0] - a[1][0] * a[2][2]) * id;
+  m[1][1] = (a[0][0] * a[2][2] - a[0][2] * a[2][0]) * id;
+  m[1][2] = (a[0][2] * a[1][0] - a[0][0] * a[1][2]) * id;
+  m[2][0] = (a[1][0] * a[2][1] - a[1][1] * a[2][0]) * id;
+  m[2][1] = (a[0][1] * a[2][0] - a[0][0] * a[2][1]) * id;
+  m[2][2] = (a[0][0] * a[1][1] - a[0][1] * a[1][0]) * id;
+  return true;
+}
+
 // Block-sparse-row copy of a block3 SymCsr in two parts. The hub rows (block rows far longer
 // than a mesh's: the fingertip proxies, coupled to every vertex) and their columns are kept
 // apart, as the list of each hub row's non-zero blocks: a step uses the few blocks in contact
@@ -48,6 +68,8 @@ struct Bsr {
   std::vector<int> rowptr;  // per block row: first cloth block (hub rows have none)
   std::vector<int> xoff;    // per cloth block: scalar offset of its column triple in x
   std::vector<int> srck;    // per cloth block: its column position (in scalars) in A's row
+  std::vector<double> dinv;  // per cloth block row, with_dinv: its diagonal block's inverse, column-major, padded
+  bool with_dinv = false;
   std::vector<int> diag;    // per block row: column position (in scalars) of its diagonal block in A's row
   std::vector<int> dblk;    // per cloth block row: index of its diagonal block (lower blocks before, upper after)
   std::vector<T> val;       // kBlock per cloth block
@@ -93,23 +115,38 @@ struct Bsr {
     }
     rowptr[nb] = static_cast<int>(xoff.size());
     val.assign(kBlock * xoff.size(), T(0));
+    dinv.assign(with_dinv ? 12 * static_cast<size_t>(nb) : 0, 0.0);
     hub_ptr.assign(hubs.size() + 1, 0);
     hub_col.assign(hub_blocks, 0);
     hub_val.assign(kBlock * static_cast<std::size_t>(hub_blocks), T(0));
   }
 
-  void load(const SymCsr& A) {
+  bool load(const SymCsr& A) {
     const int nb = static_cast<int>(diag.size());
-    for (int br = 0; br < nb; ++br) load_row(A, br);
+    bool pd = true;
+    for (int br = 0; br < nb; ++br) pd = load_row(A, br) && pd;
     load_hubs(A);
+    return pd;
   }
 
-  // The cloth blocks of block row br (none for a hub row).
-  void load_row(const SymCsr& A, int br) {
+  // The cloth blocks of block row br (none for a hub row), and with_dinv its diagonal block's
+  // inverse, from the stored (rounded) values while they are at hand. False if that block is
+  // not positive definite.
+  bool load_row(const SymCsr& A, int br) {
     const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
     const double* r0 = A.val.data() + o;
     T* dst = val.data() + kBlock * rowptr[br];
     for (int b = rowptr[br]; b < rowptr[br + 1]; ++b, dst += kBlock) store(r0 + srck[b], len, dst);
+    if (!with_dinv || dblk[br] < 0) return true;
+    const T* B = val.data() + kBlock * dblk[br];
+    double a[3][3], m[3][3];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) a[r][c] = double(B[4 * c + r]);
+    if (!inverse3(a, m)) return false;
+    double* mc = dinv.data() + 12 * br;
+    for (int c = 0; c < 3; ++c)
+      for (int r = 0; r < 4; ++r) mc[4 * c + r] = r < 3 ? m[r][c] : 0.0;
+    return true;
   }
 
   // Every hub row's blocks that are not exactly zero.
@@ -305,7 +342,6 @@ class PcgSolver final : public LinearSolver {
     x0_.assign(n_ + 1, 0.0);
     guess_.assign(n_, 0.0);
     inv_.assign(9 * (n_ / 3), 0.0);
-    invc_.assign(12 * (n_ / 3), 0.0);
     // Hub rows: block rows far longer than a mesh's (the fingertip proxies, coupled to every
     // vertex), found as CHOLMOD's ordering finds them. The matrix copy keeps them apart; the
     // preconditioner's dense block takes them when asked (hub_block).
@@ -315,6 +351,7 @@ class PcgSolver final : public LinearSolver {
     for (int br = 0; br < nb; ++br)
       if (A.rowptr[3 * br + 1] - A.rowptr[3 * br] > dense) hub_rows.push_back(br);
     sweep_order(nb);
+    mf_.with_dinv = md_.with_dinv = ssor_;
     if (opt_.single_precision_matrix) mf_.build_pattern(A, hub_rows, rank_);
     md_.build_pattern(A, hub_rows, rank_);  // also the fallback of the float copy
     // SSOR orders the hubs last as one block, whether or not the contact nodes join them.
@@ -385,8 +422,8 @@ class PcgSolver final : public LinearSolver {
     residual_ = 0.0;
     prepared_ = false;
     for (int i = 0; i < count; ++i) {
-      M.load_row(A, rows[i]);
-      if (!invert_diagonal<T>(A, rows[i], M.diag[rows[i]])) return SolveStatus::NotPositiveDefinite;
+      if (!M.load_row(A, rows[i])) return SolveStatus::NotPositiveDefinite;
+      if (!ssor_ && !invert_diagonal(A, rows[i], M.diag[rows[i]])) return SolveStatus::NotPositiveDefinite;
     }
     M.load_hubs(A);
     if (!hubs_.empty() && !factor_cluster(M, A)) return SolveStatus::NotPositiveDefinite;
@@ -400,46 +437,28 @@ class PcgSolver final : public LinearSolver {
   bool prepare(Bsr<T>& M, const SymCsr& A) {
     prepared_ = false;
     const int nb = n_ / 3;
-    M.load(A);
-    for (int br = 0; br < nb; ++br)
-      if (!invert_diagonal<T>(A, br, M.diag[br])) return false;
+    if (!M.load(A)) return false;
+    for (int br = 0; br < nb && !ssor_; ++br)
+      if (!invert_diagonal(A, br, M.diag[br])) return false;
     if (!hubs_.empty() && !factor_cluster(M, A)) return false;
     prepared_ = true;
     return true;
   }
 
-  // Block-Jacobi preconditioner: the inverse of block row br's 3x3 diagonal block (at column
-  // position d of A's row; from the double values, by cofactors). False if it is not positive
-  // definite.
-  template <class T>
+  // Block-Jacobi's preconditioner: the inverse of block row br's 3x3 diagonal block (at column
+  // position d of A's row, from the double values). False if it is not positive definite.
+  // (SSOR's are the matrix copy's own: Bsr::dinv.)
   bool invert_diagonal(const SymCsr& A, int br, int d) {
     const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
     const double* r0 = A.val.data() + o + d;
-    // SSOR's D must be the matrix copy's own (float-rounded) block: Eisenstat's identity
-    // A = (D + L) + (D + L^T) - D holds for one D only.
-    auto v = [&](double a) { return ssor_ ? double(T(a)) : a; };
-    const double a00 = v(r0[0]), a01 = v(r0[1]), a02 = v(r0[2]);
-    const double a10 = v(r0[len]), a11 = v(r0[len + 1]), a12 = v(r0[len + 2]);
-    const double a20 = v(r0[2 * len]), a21 = v(r0[2 * len + 1]), a22 = v(r0[2 * len + 2]);
-    const double c00 = a11 * a22 - a12 * a21, c01 = a02 * a21 - a01 * a22, c02 = a01 * a12 - a02 * a11;
-    const double det = a00 * c00 + a10 * c01 + a20 * c02;
-    if (!(det > 0.0) || !std::isfinite(det) || !(a00 > 0.0)) return false;
-    const double id = 1.0 / det;
-    double* m = inv_.data() + 9 * br;
-    m[0] = c00 * id;
-    m[1] = c01 * id;
-    m[2] = c02 * id;
-    m[3] = (a12 * a20 - a10 * a22) * id;
-    m[4] = (a00 * a22 - a02 * a20) * id;
-    m[5] = (a02 * a10 - a00 * a12) * id;
-    m[6] = (a10 * a21 - a11 * a20) * id;
-    m[7] = (a01 * a20 - a00 * a21) * id;
-    m[8] = (a00 * a11 - a01 * a10) * id;
-    double* mc = invc_.data() + 12 * br;  // column-major, padded
-    for (int c = 0; c < 3; ++c)
-      for (int r = 0; r < 4; ++r) mc[4 * c + r] = r < 3 ? m[3 * r + c] : 0.0;
+    double a[3][3], m[3][3];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) a[r][c] = r0[r * len + c];
+    if (!inverse3(a, m)) return false;
+    std::copy(&m[0][0], &m[0][0] + 9, inv_.data() + 9 * br);
     return true;
   }
+
 
   // |b|^2 into bn2 and a finite guess in x (else 0); a status if that settles the solve (b = 0
   // or not finite).
@@ -588,13 +607,12 @@ class PcgSolver final : public LinearSolver {
     double* t = t_.data();    // (D + L^T)^-1 p'
     double* u = u_.data();    // (D + L)^-1 (p' - D t)
     double* at = at_.data();  // A t
-    double rr = true_residual(M, b, x, r, n);
+    double rr = residual_and_lower_solve(M, b, x, r, rb);
     const double goal2 = opt_.tolerance * opt_.tolerance * bn2;
     if (rr <= goal2) {
       residual_ = std::sqrt(rr) / bnorm;
       return SolveStatus::Ok;
     }
-    lower_solve(M, r, rb);
     double rz = multiply_d(M, rb, zb, nb);
     std::copy(zb, zb + n, pb);
     int checked = 0;  // the iteration whose converged residual was checked
@@ -606,8 +624,7 @@ class PcgSolver final : public LinearSolver {
       const double pq = pt + pu;
       iterations_ = it;
       if (!(pq > 0.0)) return std::isfinite(pq) ? SolveStatus::NotPositiveDefinite : SolveStatus::NumericalError;
-      const double alpha = rz / pq;
-      rr = update(alpha, x, r, rb, n);
+      rr = update(rz / pq, x, r, rb, n);
       if (!std::isfinite(rr)) return SolveStatus::NumericalError;
       if (rr <= goal2 && opt_.tolerance < kCheckBelow && checked != it) {
         // A tolerance near the recursion's drift: the residual taken afresh decides.
@@ -625,6 +642,72 @@ class PcgSolver final : public LinearSolver {
     }
     residual_ = std::sqrt(rr) / bnorm;
     return SolveStatus::NotConverged;
+  }
+
+  // r = b - A x and r' = (D + L)^-1 r in one pass over the matrix (row i's product needs x
+  // only; its lower solve, the rows before it), returning r . r. The cluster's columns are
+  // left out of the rows' products (x_C = 0 in the padded copy) and added from the cluster's
+  // own blocks, as the sweeps do.
+  template <class T>
+  double residual_and_lower_solve(const Bsr<T>& M, const double* b, const double* x, double* r, double* y) {
+    constexpr int K = Bsr<T>::kBlock;
+    const int n = n_;
+    double* x0 = x0_.data();
+    std::copy(x, x + n, x0);
+    gather_cluster(x0, cx_.data());
+    for (int c : cluster_) {
+      x0[3 * c] = x0[3 * c + 1] = x0[3 * c + 2] = 0.0;
+      y[3 * c] = y[3 * c + 1] = y[3 * c + 2] = 0.0;
+    }
+    cluster_to_touched(M, cx_.data());
+    const T* val = M.val.data();
+    const int* xoff = M.xoff.data();
+    V4 rr{};
+    for (int br : order_) {
+      const int kind = kind_[br];
+      if (kind == kCluster) continue;
+      V4 ax = kind == kTouched ? load4(w_.data() + 3 * br) : V4{};  // A x
+      V4 s{};                                                       // -L y
+      const int k0 = M.rowptr[br], kd = M.dblk[br], k1 = M.rowptr[br + 1];
+      for (int k = k0; k < kd; ++k) {
+        const T* B = val + K * k;
+        ax += block_times(B, x0 + xoff[k]);
+        s -= block_times(B, y + xoff[k]);
+      }
+      for (int k = kd; k < k1; ++k) ax += block_times(val + K * k, x0 + xoff[k]);
+      const V4 bi{b[3 * br], b[3 * br + 1], b[3 * br + 2], 0.0};
+      const V4 ri = bi - ax;  // lane 3 is 0
+      store3(r + 3 * br, ri);
+      rr += ri * ri;
+      store3(y + 3 * br, block_times(M.dinv.data() + 12 * br, ri + s));
+    }
+    double rr_sum = sum3(rr);
+    if (cluster_.empty()) return rr_sum;
+    // r_C = b_C - A_CN x_N - D_C x_C, y_C = D_C^-1 (r_C - A_CN y_N).
+    const int m = 3 * static_cast<int>(cluster_.size());
+    cholesky_multiply(dense_.data(), m, cx_.data(), cz_.data(), ctmp_.data());
+    for_cluster_blocks(M, [&](int j, const T* B, int a) { add_block(B, x0 + 3 * j, cz_.data() + 3 * a); });
+    for (size_t a = 0; a < cluster_.size(); ++a)
+      for (int c = 0; c < 3; ++c) {
+        const int i = 3 * cluster_[a] + c, l = 3 * static_cast<int>(a) + c;
+        r[i] = b[i] - cz_[l];
+        rr_sum += r[i] * r[i];
+        cz_[l] = r[i];
+      }
+    for_cluster_blocks(M, [&](int j, const T* B, int a) {
+      double* s = cz_.data() + 3 * a;
+      sub_block(B, y + 3 * j, s[0], s[1], s[2]);
+    });
+    cholesky_solve(dense_.data(), m, cz_.data());
+    scatter_cluster(cz_.data(), y);
+    return rr_sum;
+  }
+
+  // w_j = A_jC v_C for every row j the cluster reaches.
+  template <class T>
+  void cluster_to_touched(const Bsr<T>& M, const double* vc) {
+    for (int j : touched_) w_[3 * j] = w_[3 * j + 1] = w_[3 * j + 2] = 0.0;
+    for_cluster_blocks(M, [&](int j, const T* B, int a) { add_block_t(B, vc + 3 * a, w_.data() + 3 * j); });
   }
 
   // r = b - A x, returning r . r.
@@ -678,7 +761,6 @@ class PcgSolver final : public LinearSolver {
   template <class T>
   double multiply_d(const Bsr<T>& M, const double* r, double* z, int nb) {
     constexpr int K = Bsr<T>::kBlock;
-    double rz = 0.0;
     const T* val = M.val.data();
     const int* dblk = M.dblk.data();
     const signed char* kind = kind_.data();
@@ -689,14 +771,18 @@ class PcgSolver final : public LinearSolver {
       store3(z + 3 * br, zi);
       dot += load4(r + 3 * br) * zi;
     }
-    rz = sum3(dot);
-    if (!cluster_.empty()) {
-      const int m = 3 * static_cast<int>(cluster_.size());
-      gather_cluster(r, cz_.data());
-      cholesky_multiply(dense_.data(), m, cz_.data(), cw_.data(), ctmp_.data());
-      for (int i = 0; i < m; ++i) rz += cz_[i] * cw_[i];
-      scatter_cluster(cw_.data(), z);
-    }
+    return sum3(dot) + multiply_cluster_d(r, z);
+  }
+
+  // z_C = D_C r_C, returning r_C . z_C.
+  double multiply_cluster_d(const double* r, double* z) {
+    if (cluster_.empty()) return 0.0;
+    const int m = 3 * static_cast<int>(cluster_.size());
+    gather_cluster(r, cz_.data());
+    cholesky_multiply(dense_.data(), m, cz_.data(), cw_.data(), ctmp_.data());
+    double rz = 0.0;
+    for (int i = 0; i < m; ++i) rz += cz_[i] * cw_[i];
+    scatter_cluster(cw_.data(), z);
     return rz;
   }
 
@@ -717,29 +803,6 @@ class PcgSolver final : public LinearSolver {
       }
   }
 
-  // y = (D + L)^-1 v.
-  template <class T>
-  void lower_solve(const Bsr<T>& M, const double* v, double* y) {
-    constexpr int K = Bsr<T>::kBlock;
-    for (int c : cluster_) y[3 * c] = y[3 * c + 1] = y[3 * c + 2] = 0.0;
-    for (int br : order_) {
-      if (kind_[br] == kCluster) continue;
-      V4 s = load4(v + 3 * br);
-      const T* B = M.val.data() + K * M.rowptr[br];
-      for (int k = M.rowptr[br]; k < M.dblk[br]; ++k, B += K) s -= block_times(B, y + M.xoff[k]);
-      store3(y + 3 * br, block_times(invc_.data() + 12 * br, s));
-    }
-    if (cluster_.empty()) return;
-    const int m = 3 * static_cast<int>(cluster_.size());
-    gather_cluster(v, cz_.data());
-    for_cluster_blocks(M, [&](int j, const T* B, int a) {
-      double* s = cz_.data() + 3 * a;
-      sub_block(B, y + 3 * j, s[0], s[1], s[2]);
-    });
-    cholesky_solve(dense_.data(), m, cz_.data());
-    scatter_cluster(cz_.data(), y);
-  }
-
   // t = (D + L^T)^-1 p, returning p . t. The cluster first (it is last in the order), its
   // share A_jC t_C in the rows j it reaches, then the rows outside it, last to first. t_C is
   // left in ct_, and 0 in t for forward_sweep.
@@ -753,10 +816,12 @@ class PcgSolver final : public LinearSolver {
       cholesky_solve(dense_.data(), m, ct_.data());
       for (size_t a = 0; a < cluster_.size(); ++a)
         for (int c = 0; c < 3; ++c) pt += ct_[3 * a + c] * p[3 * cluster_[a] + c];
-      for (int j : touched_) w_[3 * j] = w_[3 * j + 1] = w_[3 * j + 2] = 0.0;
-      for_cluster_blocks(M, [&](int j, const T* B, int a) { add_block_t(B, ct_.data() + 3 * a, w_.data() + 3 * j); });
+      cluster_to_touched(M, ct_.data());
       for (int c : cluster_) t[3 * c] = t[3 * c + 1] = t[3 * c + 2] = 0.0;
     }
+    const T* val = M.val.data();
+    const int* xoff = M.xoff.data();
+    const double* dinv = M.dinv.data();
     V4 dot{};
     for (auto it = order_.rbegin(); it != order_.rend(); ++it) {
       const int br = *it, kind = kind_[br];
@@ -765,10 +830,8 @@ class PcgSolver final : public LinearSolver {
       V4 s = pi;
       if (kind == kTouched) s -= load4(w_.data() + 3 * br);
       // Farthest block first: the nearest row's t, computed last, then waits on one product.
-      const int k0 = M.dblk[br];
-      const T* B = M.val.data() + K * (M.rowptr[br + 1] - 1);
-      for (int k = M.rowptr[br + 1] - 1; k > k0; --k, B -= K) s -= block_times(B, t + M.xoff[k]);
-      const V4 ti = block_times(invc_.data() + 12 * br, s);  // lane 3 is 0
+      for (int k = M.rowptr[br + 1] - 1; k > M.dblk[br]; --k) s -= block_times(val + K * k, t + xoff[k]);
+      const V4 ti = block_times(dinv + 12 * br, s);  // lane 3 is 0
       store3(t + 3 * br, ti);
       dot += pi * ti;
     }
@@ -799,7 +862,7 @@ class PcgSolver final : public LinearSolver {
       }
       store3(at + 3 * br, a);
       if constexpr (kFresh) store3(r + 3 * br, g);
-      const V4 ui = block_times(invc_.data() + 12 * br, s);  // lane 3 is 0
+      const V4 ui = block_times(M.dinv.data() + 12 * br, s);  // lane 3 is 0
       store3(u + 3 * br, ui);
       dot += pi * ui;
     }
@@ -902,16 +965,17 @@ class PcgSolver final : public LinearSolver {
     });
     const int m = 3 * static_cast<int>(cluster_.size());
     std::fill(dense_.begin(), dense_.begin() + m * m, 0.0);
-    for (int a : cluster_) {
-      const int o = A.rowptr[3 * a], len = A.rowptr[3 * a + 1] - o;
-      for (int k = 0; k < len; k += 3) {
-        const int b = local_[A.col[o + k] / 3];
-        if (b < 0) continue;
-        for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) {
-            const double v = A.val[o + r * len + k + c];
-            dense_[(3 * local_[a] + r) * m + 3 * b + c] = ssor_ ? double(T(v)) : v;  // invert_diagonal
-          }
+    if (ssor_) {
+      cluster_from_copy(M);
+    } else {
+      for (int a : cluster_) {
+        const int o = A.rowptr[3 * a], len = A.rowptr[3 * a + 1] - o;
+        for (int k = 0; k < len; k += 3) {
+          const int b = local_[A.col[o + k] / 3];
+          if (b < 0) continue;
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) dense_[(3 * local_[a] + r) * m + 3 * b + c] = A.val[o + r * len + k + c];
+        }
       }
     }
     return cholesky(dense_.data(), m);
@@ -932,6 +996,35 @@ class PcgSolver final : public LinearSolver {
       for (int i = j + 1; i < m; ++i) a[i * m + j] = (a[i * m + j] - Row(a + i * m, j).dot(lj)) / l;
     }
     return true;
+  }
+
+  // SSOR's cluster block from the matrix copy, as its D must be (invert_diagonal): the cluster's
+  // cloth rows' blocks, and the hub rows' (whose columns the cloth rows do not keep).
+  template <class T>
+  void cluster_from_copy(const Bsr<T>& M) {
+    constexpr int K = Bsr<T>::kBlock;
+    const int m = 3 * static_cast<int>(cluster_.size());
+    auto put = [&](int a, int b, const T* B, bool transpose) {
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+          dense_[(3 * a + r) * m + 3 * b + c] = double(transpose ? B[4 * r + c] : B[4 * c + r]);
+    };
+    for (int node : cluster_) {
+      if (M.is_hub[node]) continue;
+      const T* B = M.val.data() + K * M.rowptr[node];
+      for (int k = M.rowptr[node]; k < M.rowptr[node + 1]; ++k, B += K)
+        if (local_[M.xoff[k] / 3] >= 0) put(local_[node], local_[M.xoff[k] / 3], B, false);
+    }
+    for (size_t i = 0; i < M.hubs.size(); ++i) {
+      const int h = M.hubs[i];
+      if (local_[h] < 0) continue;
+      for (int e = M.hub_ptr[i]; e < M.hub_ptr[i + 1]; ++e) {
+        const int j = M.hub_col[e];
+        if (local_[j] < 0) continue;
+        put(local_[h], local_[j], M.hub_val.data() + K * e, false);
+        if (!M.is_hub[j]) put(local_[j], local_[h], M.hub_val.data() + K * e, true);
+      }
+    }
   }
 
   // y = L L^T x with the factor from cholesky() (tmp: m entries of workspace).
@@ -969,7 +1062,7 @@ class PcgSolver final : public LinearSolver {
   std::vector<signed char> kind_;  // per block row: outside the cluster, in it, or reached by it
   std::vector<int> touched_;       // the rows the cluster reaches
   std::vector<double> w_, t_, u_, at_;
-  std::array<double, 3 * kMaxCluster> ct_{}, cw_{}, ctmp_{};
+  std::array<double, 3 * kMaxCluster> ct_{}, cw_{}, ctmp_{}, cx_{};
   std::vector<int> hubs_, local_, cluster_;
   std::vector<std::pair<double, int>> weight_;
   std::array<double, 9 * kMaxCluster * kMaxCluster> dense_{};
@@ -981,7 +1074,6 @@ class PcgSolver final : public LinearSolver {
   std::vector<double> guess_;  // the starting guess, for the double solve after a float one
   int n_ = 0;
   std::vector<double> r_, z_, p_, q_, x0_, inv_;
-  std::vector<double> invc_;  // inv_ column-major, each column padded to 4 lanes (the sweeps)
   std::vector<int> order_, rank_;  // the sweeps' row order, and each row's place in it
   Bsr<double> md_;
   Bsr<float> mf_;
