@@ -290,7 +290,8 @@ void load_physics(const TomlFile& f, const toml::table& ph, Scene& s) {
 
 void load_integrator(const TomlFile& f, const toml::table& it, Scene& s) {
   f.only_keys(it, "integrator", {"dt", "alpha", "solver", "jacobian", "pcg_tolerance",
-                                 "pcg_max_iterations", "pcg_float_matrix", "pcg_preconditioner", "max_halvings",
+                                 "pcg_max_iterations", "pcg_float_matrix", "pcg_preconditioner", "pcg_ssor_omega",
+                                 "max_halvings",
                                  "explosion_ratio", "threads"});
   auto& c = s.integrator;
   c.dt = f.number(it, "integrator", "dt", c.dt);
@@ -319,6 +320,9 @@ void load_integrator(const TomlFile& f, const toml::table& it, Scene& s) {
   if (pre == "ssor") s.pcg.preconditioner = cloth::PcgPreconditioner::Ssor;
   else if (pre == "block-jacobi") s.pcg.preconditioner = cloth::PcgPreconditioner::BlockJacobi;
   else f.fail(it.get("pcg_preconditioner"), "integrator.pcg_preconditioner", "must be \"ssor\" or \"block-jacobi\"");
+  s.pcg.ssor_omega = f.number(it, "integrator", "pcg_ssor_omega", s.pcg.ssor_omega);
+  if (!(s.pcg.ssor_omega >= 1.0 && s.pcg.ssor_omega < 2.0))
+    f.fail(it.get("pcg_ssor_omega"), "integrator.pcg_ssor_omega", "must be in [1, 2) (SSOR's relaxation factor)");
   c.max_halvings = static_cast<int>(f.integer(it, "integrator", "max_halvings", c.max_halvings));
   if (c.max_halvings < 0 || c.max_halvings > 20)
     f.fail(it.get("max_halvings"), "integrator.max_halvings", "must be in [0, 20]");

@@ -70,6 +70,7 @@ struct Bsr {
   std::vector<int> srck;    // per cloth block: its column position (in scalars) in A's row
   std::vector<double> dinv;  // per cloth block row, with_dinv: its diagonal block's inverse, column-major, padded
   bool with_dinv = false;
+  double dinv_scale = 1.0;  // omega: SSOR's sweeps divide by D / omega
   std::vector<int> diag;    // per block row: column position (in scalars) of its diagonal block in A's row
   std::vector<int> dblk;    // per cloth block row: index of its diagonal block (lower blocks before, upper after)
   std::vector<T> val;       // kBlock per cloth block
@@ -145,7 +146,7 @@ struct Bsr {
     if (!inverse3(a, m)) return false;
     double* mc = dinv.data() + 12 * br;
     for (int c = 0; c < 3; ++c)
-      for (int r = 0; r < 4; ++r) mc[4 * c + r] = r < 3 ? m[r][c] : 0.0;
+      for (int r = 0; r < 4; ++r) mc[4 * c + r] = r < 3 ? dinv_scale * m[r][c] : 0.0;
     return true;
   }
 
@@ -324,9 +325,12 @@ inline double sum3(V4 a) { return a[0] + a[1] + a[2]; }
 
 class PcgSolver final : public LinearSolver {
  public:
-  explicit PcgSolver(const PcgOptions& o) : opt_(o), ssor_(o.preconditioner == PcgPreconditioner::Ssor) {
+  explicit PcgSolver(const PcgOptions& o)
+      : opt_(o), ssor_(o.preconditioner == PcgPreconditioner::Ssor), omega_(o.ssor_omega) {
     if (!(o.tolerance > 0.0) || !std::isfinite(o.tolerance) || o.max_iterations < 1)
       throw std::invalid_argument("pcg: tolerance must be > 0 and max_iterations >= 1");
+    if (!(o.ssor_omega >= 1.0 && o.ssor_omega < 2.0))
+      throw std::invalid_argument("pcg: ssor_omega must be in [1, 2)");
   }
   const char* name() const override { return "pcg"; }
 
@@ -352,6 +356,7 @@ class PcgSolver final : public LinearSolver {
       if (A.rowptr[3 * br + 1] - A.rowptr[3 * br] > dense) hub_rows.push_back(br);
     sweep_order(nb);
     mf_.with_dinv = md_.with_dinv = ssor_;
+    mf_.dinv_scale = md_.dinv_scale = omega_;
     if (opt_.single_precision_matrix) mf_.build_pattern(A, hub_rows, rank_);
     md_.build_pattern(A, hub_rows, rank_);  // also the fallback of the float copy
     // SSOR orders the hubs last as one block, whether or not the contact nodes join them.
@@ -583,29 +588,30 @@ class PcgSolver final : public LinearSolver {
     z[2] = m[6] * s0 + m[7] * s1 + m[8] * s2;
   }
 
-  // Symmetric block Gauss-Seidel (SSOR, omega = 1) by Eisenstat's trick. A = L + D + L^T with
-  // D the 3x3 diagonal blocks and the cluster's dense block, the cluster ordered last; the
-  // preconditioner is M = (D + L) D^-1 (D + L^T). CG runs on A' = (D + L)^-1 A (D + L^T)^-1
-  // with the preconditioner D, whose product costs one backward and one forward sweep, each over
-  // half the blocks: t = (D + L^T)^-1 p', A' p' = t + (D + L)^-1 (p' - D t). So an iteration
-  // reads the matrix once, as block-Jacobi's does, and the cloth's smooth modes converge in
-  // fewer (on the pinched 4050-triangle square 22 -> 9 a step). x is carried along (x += alpha
-  // t), and so is the true residual r = b - A x (r -= alpha A t, the forward sweep giving A t =
-  // (D + L) t + p' - D t), so the solve stops at |r| <= tolerance |b| as block-Jacobi's does.
-  // That recursion drifts (A t is a difference of terms up to 1e8 times larger with stiff
-  // contact springs: 1e-7 relative in test_solver's pinch), so every kRefresh-th sweep also
-  // takes r = (D + L) r' = D r' + L r' afresh from the transformed residual r'.
+  // Symmetric block Gauss-Seidel (SSOR) by Eisenstat's trick. A = L + D + L^T with D the 3x3
+  // diagonal blocks and the cluster's dense block, the cluster ordered last, and E = D / omega
+  // (the cluster's block unrelaxed); the preconditioner is M = (E + L) E^-1 (E + L^T), SSOR's
+  // up to a factor. CG runs on A' = (E + L)^-1 A (E + L^T)^-1 with the preconditioner E, whose
+  // product costs one backward and one forward sweep, each over half the blocks: with t =
+  // (E + L^T)^-1 p', A' p' = t + (E + L)^-1 (p' + (D - 2E) t), from A = (E + L) + (E + L^T) +
+  // D - 2E. So an iteration reads the matrix once, as block-Jacobi's does, and the cloth's
+  // smooth modes converge in fewer (on the pinched 4050-triangle square 22 -> 9 a step). x is
+  // carried along (x += alpha t), and so is the true residual r = b - A x (r -= alpha A t, the
+  // forward sweep giving A t = L t + p' + (D - E) t), so the solve stops at |r| <= tolerance
+  // |b| as block-Jacobi's does. That recursion drifts (A t is a difference of terms up to 1e8
+  // times larger with stiff contact springs: 1e-7 relative in test_solver's pinch), so every
+  // kRefresh-th sweep also takes r = (E + L) r' = E r' + L r' afresh from the transformed one.
   template <class T>
   SolveStatus iterate_ssor(const Bsr<T>& M, const double* b, double* x, int n, int nb) {
     double bn2 = 0.0;
     if (const auto settled = start(b, x, n, bn2)) return *settled;
     const double bnorm = std::sqrt(bn2);
     double* r = r_.data();    // b - A x
-    double* rb = z_.data();   // r' = (D + L)^-1 r
-    double* zb = q_.data();   // z' = D r'
+    double* rb = z_.data();   // r' = (E + L)^-1 r
+    double* zb = q_.data();   // z' = E r'
     double* pb = p_.data();   // p'
-    double* t = t_.data();    // (D + L^T)^-1 p'
-    double* u = u_.data();    // (D + L)^-1 (p' - D t)
+    double* t = t_.data();    // (E + L^T)^-1 p'
+    double* u = u_.data();    // (E + L)^-1 (p' + (D - 2E) t)
     double* at = at_.data();  // A t
     double rr = residual_and_lower_solve(M, b, x, r, rb);
     const double goal2 = opt_.tolerance * opt_.tolerance * bn2;
@@ -644,7 +650,7 @@ class PcgSolver final : public LinearSolver {
     return SolveStatus::NotConverged;
   }
 
-  // r = b - A x and r' = (D + L)^-1 r in one pass over the matrix (row i's product needs x
+  // r = b - A x and r' = (E + L)^-1 r in one pass over the matrix (row i's product needs x
   // only; its lower solve, the rows before it), returning r . r. The cluster's columns are
   // left out of the rows' products (x_C = 0 in the padded copy) and added from the cluster's
   // own blocks, as the sweeps do.
@@ -757,17 +763,18 @@ class PcgSolver final : public LinearSolver {
     return s;
   }
 
-  // z = D r (the 3x3 diagonal blocks, the cluster's dense block), returning r . z.
+  // z = E r (the 3x3 diagonal blocks over omega, the cluster's dense block), returning r . z.
   template <class T>
   double multiply_d(const Bsr<T>& M, const double* r, double* z, int nb) {
     constexpr int K = Bsr<T>::kBlock;
     const T* val = M.val.data();
     const int* dblk = M.dblk.data();
     const signed char* kind = kind_.data();
+    const V4 scale = splat(1.0 / omega_);
     V4 dot{};
     for (int br = 0; br < nb; ++br) {
       if (kind[br] == kCluster) continue;
-      const V4 zi = block_times(val + K * dblk[br], r + 3 * br);  // lane 3 is 0
+      const V4 zi = scale * block_times(val + K * dblk[br], r + 3 * br);  // lane 3 is 0
       store3(z + 3 * br, zi);
       dot += load4(r + 3 * br) * zi;
     }
@@ -803,7 +810,7 @@ class PcgSolver final : public LinearSolver {
       }
   }
 
-  // t = (D + L^T)^-1 p, returning p . t. The cluster first (it is last in the order), its
+  // t = (E + L^T)^-1 p, returning p . t. The cluster first (it is last in the order), its
   // share A_jC t_C in the rows j it reaches, then the rows outside it, last to first. t_C is
   // left in ct_, and 0 in t for forward_sweep.
   template <class T>
@@ -838,21 +845,23 @@ class PcgSolver final : public LinearSolver {
     return pt + sum3(dot);
   }
 
-  // After backward_sweep: u = (D + L)^-1 (p - D t), A t = (D + L) t + p - D t, and the residual
-  // r = D r' + L r' from the transformed one (z' = D r' given); returns p . u. t gets the
-  // cluster's values back.
+  // After backward_sweep: u = (E + L)^-1 (p + (D - 2E) t), A t = L t + p + (D - E) t, and
+  // with kFresh the residual r = E r' + L r' from the transformed one (z' = E r' given);
+  // returns p . u. t gets the cluster's values back.
   template <bool kFresh, class T>
   double forward_sweep(const Bsr<T>& M, const double* p, double* t, double* u, double* at,
                        const double* rb, const double* zb, double* r) {
     constexpr int K = Bsr<T>::kBlock;
+    const V4 c_dt_u = splat(2.0 / omega_ - 1.0), c_dt_a = splat(1.0 - 1.0 / omega_);
     for (int c : cluster_) u[3 * c] = u[3 * c + 1] = u[3 * c + 2] = 0.0;
     V4 dot{};
     for (int br : order_) {
       if (kind_[br] == kCluster) continue;
       const V4 pi = load4(p + 3 * br);
-      V4 s = pi - block_times(M.val.data() + K * M.dblk[br], t + 3 * br);  // p - D t - L u
-      V4 a = pi;                                                             // p + L t
-      V4 g = load4(zb + 3 * br);                                             // D r' + L r'
+      const V4 dt = block_times(M.val.data() + K * M.dblk[br], t + 3 * br);
+      V4 s = pi - c_dt_u * dt;        // p + (D - 2E) t - L u
+      V4 a = pi + c_dt_a * dt;        // p + (D - E) t + L t
+      V4 g = load4(zb + 3 * br);      // E r' + L r'
       const T* B = M.val.data() + K * M.rowptr[br];
       for (int k = M.rowptr[br]; k < M.dblk[br]; ++k, B += K) {
         const int o = M.xoff[k];
@@ -868,8 +877,9 @@ class PcgSolver final : public LinearSolver {
     }
     double pu = sum3(dot);
     if (!cluster_.empty()) {
-      // u_C = D_C^-1 (0 - A_CN u_N) (p_C - D_C t_C = 0), A t_C = A_CN t_N + p_C, r_C = D_C r'_C
-      // + A_CN r'_N.
+      // The cluster's block is not relaxed (omega 1: over-relaxing the contact springs cost
+      // iterations), so t_C = D_C^-1 p_C, p_C - D_C t_C = 0: u_C = D_C^-1 (0 - A_CN u_N), A t_C =
+      // A_CN t_N + p_C, r_C = D_C r'_C + A_CN r'_N.
       const int m = 3 * static_cast<int>(cluster_.size());
       std::fill(cz_.begin(), cz_.begin() + m, 0.0);
       std::fill(cw_.begin(), cw_.begin() + m, 0.0);
@@ -1070,6 +1080,7 @@ class PcgSolver final : public LinearSolver {
 
   PcgOptions opt_;
   bool ssor_;  // the preconditioner is SSOR (else block-Jacobi)
+  double omega_;  // SSOR's relaxation factor (the cloth rows'; the cluster's is 1)
   bool prepared_ = false, float_in_use_ = false;
   std::vector<double> guess_;  // the starting guess, for the double solve after a float one
   int n_ = 0;

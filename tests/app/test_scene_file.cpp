@@ -140,6 +140,7 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
       {"UnknownSolver", with_line(kScene, 15, "solver = \"lu\""), 15, {"key 'integrator.solver'", "\"pcg\""}},
       {"UnknownPreconditioner", kScene + "pcg_preconditioner = \"ilu\"\n", 16,
        {"key 'integrator.pcg_preconditioner'", "\"ssor\" or \"block-jacobi\""}},
+      {"OmegaOutOfRange", kScene + "pcg_ssor_omega = 2.0\n", 16, {"key 'integrator.pcg_ssor_omega'", "[1, 2)"}},
       {"UnknownMeshType", with_line(kScene, 5, "type = \"sphere\""), 5, {"key 'mesh.type'", "\"grid\" or \"obj\""}},
       {"ZeroResolution", with_line(kScene, 7, "resolution = [0, 5]"), 7, {"key 'mesh.resolution'", "[1, 2000]"}},
       {"UnknownPinEdge", with_line(kScene, 10, "edges = [\"middle\"]"), 10, {"key 'pins.edges'", "'middle'"}},
@@ -158,6 +159,8 @@ TEST_F(SceneFileTest, PcgPreconditionerKey) {
   EXPECT_EQ(scene(kScene).pcg.preconditioner, PcgPreconditioner::Ssor);
   EXPECT_EQ(scene(kScene + "pcg_preconditioner = \"block-jacobi\"\n").pcg.preconditioner, PcgPreconditioner::BlockJacobi);
   EXPECT_EQ(scene(kScene + "pcg_preconditioner = \"ssor\"\n").pcg.preconditioner, PcgPreconditioner::Ssor);
+  EXPECT_DOUBLE_EQ(scene(kScene).pcg.ssor_omega, 1.0);
+  EXPECT_DOUBLE_EQ(scene(kScene + "pcg_ssor_omega = 1.4\n").pcg.ssor_omega, 1.4);
 }
 
 TEST_F(SceneFileTest, DeviceClockKey) {

@@ -241,6 +241,45 @@ TEST(Solver, PcgWithContactHubsMatchesCholmod) {
   }
 }
 
+// Over-relaxed SSOR (omega > 1 on the cloth's rows, the fingertips' block whole) solves the
+// pinched sheet's system to CHOLMOD's answer, its reported residual the true one.
+TEST(Solver, SsorOverRelaxedMatchesCholmod) {
+  std::mt19937 rng(10);
+  PinchedSheet p(rng);
+  for (int tri : {100, 101, 125})
+    for (int q = 0; q < 6; ++q) {
+      cloth::PointSpring sp;
+      sp.tri = tri;
+      sp.b[0] = sp.b[1] = sp.b[2] = 1.0 / 3.0;
+      sp.proxy = q % 2;
+      sp.K = 3e3 * cloth::Mat3::Identity();
+      p.integ->point_springs().push_back(sp);
+    }
+  const auto [A, b, x_chol] = cholmod_reference(p.system_matrix(), rng);
+  for (double omega : {1.0, 1.3, 1.7}) {
+    for (bool float_matrix : {false, true}) {
+      SCOPED_TRACE(testing::Message() << "omega " << omega << " float " << float_matrix);
+      std::vector<double> x(A.n, 0.0);
+      auto pcg = cloth::make_pcg_solver({.tolerance = 1e-10, .single_precision_matrix = float_matrix, .ssor_omega = omega});
+      pcg->analyze(A);
+      ASSERT_EQ(pcg->solve(A, b.data(), x.data()), cloth::SolveStatus::Ok);
+      EXPECT_LE(max_abs_diff(x, x_chol), (float_matrix ? 1e-5 : 1e-7) * max_abs(x_chol));
+      if (!float_matrix) EXPECT_LE(relative_residual(A, b, x), 1.01e-10);
+    }
+    // At the scenes' tolerances no check afresh: the carried residual alone must be true.
+    for (double tol : {1e-2, 1e-3}) {
+      std::vector<double> x(A.n, 0.0);
+      auto pcg = cloth::make_pcg_solver({.tolerance = tol, .ssor_omega = omega});
+      pcg->analyze(A);
+      ASSERT_EQ(pcg->solve(A, b.data(), x.data()), cloth::SolveStatus::Ok);
+      EXPECT_LE(relative_residual(A, b, x), 1.01 * tol) << "omega " << omega;
+      EXPECT_NEAR(relative_residual(A, b, x), pcg->residual(), 0.1 * tol) << "omega " << omega;
+    }
+  }
+  EXPECT_THROW(cloth::make_pcg_solver({.ssor_omega = 2.0}), std::invalid_argument);
+  EXPECT_THROW(cloth::make_pcg_solver({.ssor_omega = 0.9}), std::invalid_argument);
+}
+
 // A contact revision changes the springs, so the matrix changes in the rows of the springs'
 // corners and proxies only. PCG told those rows (solve_changed) reloads and re-preconditions
 // just them, and must then solve the new system as CHOLMOD does; told none, it would solve the

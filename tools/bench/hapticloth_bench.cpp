@@ -131,6 +131,9 @@ int main(int argc, char** argv) {
   std::string preconditioner;
   step->add_option("--pcg-preconditioner", preconditioner, "ssor or block-jacobi (default: the scene's)")
       ->check(CLI::IsMember({"ssor", "block-jacobi"}));
+  double omega = 0;
+  step->add_option("--pcg-omega", omega, "SSOR's relaxation factor in [1, 2) (default: the scene's)")
+      ->check(CLI::Range(1.0, 1.999));
   int threads = 0;
   step->add_option("--threads", threads, "threads of the element assembly, 1 or 2 (default: the scene's)")
       ->check(CLI::Range(1, 2));
@@ -266,6 +269,7 @@ int main(int argc, char** argv) {
     if (tol > 0) scene.pcg.tolerance = tol;
     if (!preconditioner.empty())
       scene.pcg.preconditioner = preconditioner == "ssor" ? cloth::PcgPreconditioner::Ssor : cloth::PcgPreconditioner::BlockJacobi;
+    if (omega > 0) scene.pcg.ssor_omega = omega;
     if (threads > 0) scene.integrator.assembly_threads = threads;
     scene.integrator.validate();
     if (pinch) {
