@@ -34,12 +34,12 @@ inline devices::DeviceOptions touch_device_options() {
   return o;
 }
 
-inline std::unique_ptr<cloth::LinearSolver> touch_solver(const std::string& name) {
+inline cloth::PcgOptions touch_pcg() {
   cloth::PcgOptions pcg;
   pcg.tolerance = 1e-3;  // the scenes' tolerance (BENCHMARKS.md)
   pcg.max_iterations = 300;
   pcg.single_precision_matrix = true;
-  return cloth::make_solver(name, pcg);
+  return pcg;
 }
 
 /// A stepped session around a mock device playing `tr`.
@@ -49,11 +49,11 @@ struct TouchRig {
   std::unique_ptr<haptics::Session> session;
   TouchRig(cloth::ClothModel m, devices::Trajectory tr, const haptics::SessionConfig& sc,
            const cloth::IntegratorConfig& ic, const cloth::ClothState& start,
-           const std::string& solver)
+           const std::string& solver, const cloth::PcgOptions& pcg = touch_pcg())
       : model(std::move(m)),
         dev(std::make_unique<devices::MockDevice>(touch_device_options(), std::move(tr))) {
     dev.configure();
-    session = std::make_unique<haptics::Session>(model, ic, touch_solver(solver), start, dev, sc);
+    session = std::make_unique<haptics::Session>(model, ic, cloth::make_solver(solver, pcg), start, dev, sc);
   }
 };
 

@@ -151,7 +151,8 @@ json pinch_step(const app::Scene& scene, double seconds) {
     tr.add(f, 0.05, at + Eigen::Vector3d(0, 0, side * (r - sq)));
     tr.add(f, seconds, at + Eigen::Vector3d(0, 0, side * (r - sq)));
   }
-  test::TouchRig rig(cloth::ClothModel(model), std::move(tr), sc, ic, cloth::rest_state(model), scene.solver);
+  test::TouchRig rig(cloth::ClothModel(model), std::move(tr), sc, ic, cloth::rest_state(model), scene.solver,
+                     scene.pcg);
   long both = 0, ticks = 0;
   // Where a step's time goes: the solver's iterations (summed over the re-solves) and the
   // integrator's share of the step (the rest is the contact's sampling and FCL).
