@@ -38,10 +38,14 @@ class LinearSolver {
   int iterations() const { return iterations_; }
   /// Relative residual |b - A x| / |b| of the last solve (iterative solvers).
   double residual() const { return residual_; }
+  /// Solves whose single-precision matrix copy stalled above the tolerance and were solved
+  /// again in double precision (PCG with PcgOptions::single_precision_matrix), since analyze().
+  int precision_fallbacks() const { return precision_fallbacks_; }
 
  protected:
   int iterations_ = 0;
   double residual_ = 0.0;
+  int precision_fallbacks_ = 0;
 };
 
 /// The PCG's preconditioner. Both treat the fingertip proxies with the vertices they touch as

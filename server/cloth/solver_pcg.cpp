@@ -5,6 +5,7 @@
 #include <cstring>
 #include <limits>
 #include <optional>
+#include <string>
 #include <stdexcept>
 #include <vector>
 
@@ -46,6 +47,7 @@ class PcgSolver final : public LinearSolver {
     if (A.n % 3 != 0) throw std::invalid_argument("pcg: matrix size must be a multiple of 3");
     if (!A.block3) throw std::invalid_argument("pcg: the matrix must have 3x3 block structure");
     n_ = A.n;
+    precision_fallbacks_ = 0;
     // One padding entry: the vectorized product reads and writes 4 lanes per block row.
     r_.assign(n_ + 1, 0.0);
     z_.assign(n_ + 1, 0.0);
@@ -62,6 +64,10 @@ class PcgSolver final : public LinearSolver {
     std::vector<int> hub_rows;
     for (int br = 0; br < nb; ++br)
       if (A.rowptr[3 * br + 1] - A.rowptr[3 * br] > dense) hub_rows.push_back(br);
+    // SSOR keeps every hub in the cluster (a hub row has no block of its own in the sweeps).
+    if (ssor_ && static_cast<int>(hub_rows.size()) > kMaxCluster)
+      throw std::invalid_argument("pcg: SSOR takes at most " + std::to_string(kMaxCluster) + " hub rows, not " +
+                                  std::to_string(hub_rows.size()) + " (use block-jacobi)");
     sweep_order(nb);
     mf_.with_dinv = md_.with_dinv = ssor_;
     mf_.dinv_scale = md_.dinv_scale = omega_;
@@ -71,7 +77,7 @@ class PcgSolver final : public LinearSolver {
     hubs_ = opt_.hub_block || ssor_ ? hub_rows : std::vector<int>{};
     local_.assign(nb, -1);
     kind_.assign(nb, kPlain);
-    w_.assign(n_, 0.0);
+    w_.assign(n_ + 1, 0.0);  // padded as the others: the sweeps read 4 lanes
     t_.assign(n_ + 1, 0.0);
     u_.assign(n_ + 1, 0.0);
     at_.assign(n_ + 1, 0.0);
@@ -80,7 +86,7 @@ class PcgSolver final : public LinearSolver {
     cluster_.clear();
     cluster_.reserve(kMaxCluster);
     weight_.clear();
-    weight_.reserve(nb);
+    weight_.reserve((hub_rows.size() + 1) * static_cast<size_t>(nb));  // a hub row reaches every node at most
   }
 
   // With the float copy, a system too ill-conditioned for its rounding (the residual stalls
@@ -93,6 +99,7 @@ class PcgSolver final : public LinearSolver {
     const SolveStatus st = run(mf_, A, b, x, true);
     if (st != SolveStatus::NotConverged) return st;
     float_in_use_ = false;
+    ++precision_fallbacks_;
     std::copy(guess_.begin(), guess_.begin() + n_, x);
     return run(md_, A, b, x, true);
   }
@@ -111,6 +118,7 @@ class PcgSolver final : public LinearSolver {
     const SolveStatus st = run_changed(mf_, A, block_rows, count, b, x);
     if (st != SolveStatus::NotConverged) return st;
     float_in_use_ = false;
+    ++precision_fallbacks_;
     std::copy(guess_.begin(), guess_.begin() + n_, x);
     return run(md_, A, b, x, true);
   }
@@ -558,10 +566,16 @@ class PcgSolver final : public LinearSolver {
   // returns p . u. t gets the cluster's values back.
   template <bool kFresh, class T>
   double forward_sweep(const Bsr<T>& M, const double* p, double* t, double* u, double* at,
-                       const double* rb, const double* zb, double* r) {
+                       double* rb, const double* zb, double* r) {
     constexpr int K = Bsr<T>::kBlock;
     const V4 c_dt_u = splat(2.0 / omega_ - 1.0), c_dt_a = splat(1.0 - 1.0 / omega_);
     for (int c : cluster_) u[3 * c] = u[3 * c + 1] = u[3 * c + 2] = 0.0;
+    // The cluster is last in the order: its columns are no row's lower part, so r'_C is out of
+    // the rows' sums (put back below) as t_C and u_C are.
+    if constexpr (kFresh) {
+      gather_cluster(rb, crb_.data());
+      for (int c : cluster_) rb[3 * c] = rb[3 * c + 1] = rb[3 * c + 2] = 0.0;
+    }
     V4 dot{};
     for (int br : order_) {
       if (kind_[br] == kCluster) continue;
@@ -598,6 +612,7 @@ class PcgSolver final : public LinearSolver {
         add_block(B, rb + 3 * j, ctmp_.data() + 3 * a);
       });
       cholesky_solve(dense_.data(), m, cz_.data());
+      if constexpr (kFresh) scatter_cluster(crb_.data(), rb);
       for (size_t a = 0; a < cluster_.size(); ++a)
         for (int c = 0; c < 3; ++c) {
           const int i = 3 * cluster_[a] + c, l = 3 * static_cast<int>(a) + c;
@@ -780,7 +795,7 @@ class PcgSolver final : public LinearSolver {
   std::vector<signed char> kind_;  // per block row: outside the cluster, in it, or reached by it
   std::vector<int> touched_;       // the rows the cluster reaches
   std::vector<double> w_, t_, u_, at_;
-  std::array<double, 3 * kMaxCluster> ct_{}, cw_{}, ctmp_{}, cx_{};
+  std::array<double, 3 * kMaxCluster> ct_{}, cw_{}, ctmp_{}, cx_{}, crb_{};
   std::vector<int> hubs_, local_, cluster_;
   std::vector<std::pair<double, int>> weight_;
   std::array<double, 9 * kMaxCluster * kMaxCluster> dense_{};

@@ -167,6 +167,13 @@ TEST(Solver, PcgMatchesCholmod) {
     const int cold = pcg->iterations();
     ASSERT_EQ(pcg->solve(A, b.data(), x2.data()), cloth::SolveStatus::Ok);
     EXPECT_LT(pcg->iterations(), cold);
+    // resolve(): the same matrix copy and preconditioner, another right-hand side.
+    std::vector<double> b2(b.rbegin(), b.rend()), x3(A.n, 0.0), x3_chol(A.n, 0.0);
+    auto chol = cloth::make_cholmod_solver();
+    chol->analyze(A);
+    ASSERT_EQ(chol->solve(A, b2.data(), x3_chol.data()), cloth::SolveStatus::Ok);
+    ASSERT_EQ(pcg->resolve(A, b2.data(), x3.data()), cloth::SolveStatus::Ok);
+    EXPECT_LE(max_abs_diff(x3, x3_chol), 1e-8 * max_abs(x3_chol));
   }
 }
 
@@ -184,11 +191,20 @@ TEST(Solver, SsorConvergesInFewerIterationsThanBlockJacobi) {
     auto pcg = cloth::make_pcg_solver({.tolerance = 1e-3, .single_precision_matrix = true, .preconditioner = pre});
     pcg->analyze(A);
     ASSERT_EQ(pcg->solve(A, b.data(), x.data()), cloth::SolveStatus::Ok);
+    EXPECT_EQ(pcg->precision_fallbacks(), 0);  // the float copy solved it
     EXPECT_LE(relative_residual(A, b, x), 1.01e-3);
     EXPECT_LE(max_abs_diff(x, x_chol), 0.05 * max_abs(x_chol));
     iterations[pre == cloth::PcgPreconditioner::Ssor] = pcg->iterations();
   }
   EXPECT_LT(iterations[1], 0.6 * iterations[0]) << "SSOR " << iterations[1] << ", block-Jacobi " << iterations[0];
+  // Over-relaxed, a free sheet converges in fewer still (docs/performance.md).
+  std::vector<double> x(A.n, 0.0);
+  auto relaxed = cloth::make_pcg_solver({.tolerance = 1e-3, .single_precision_matrix = true, .ssor_omega = 1.4});
+  relaxed->analyze(A);
+  ASSERT_EQ(relaxed->solve(A, b.data(), x.data()), cloth::SolveStatus::Ok);
+  EXPECT_EQ(relaxed->precision_fallbacks(), 0);
+  EXPECT_LE(relative_residual(A, b, x), 1.01e-3);
+  EXPECT_LT(relaxed->iterations(), iterations[1]) << "omega 1.4: " << relaxed->iterations() << ", 1: " << iterations[1];
 }
 
 // Two proxies (the fingertips) pinch a patch of the sheet through stiff point springs: the
@@ -263,6 +279,7 @@ TEST(Solver, SsorOverRelaxedMatchesCholmod) {
       auto pcg = cloth::make_pcg_solver({.tolerance = 1e-10, .single_precision_matrix = float_matrix, .ssor_omega = omega});
       pcg->analyze(A);
       ASSERT_EQ(pcg->solve(A, b.data(), x.data()), cloth::SolveStatus::Ok);
+      EXPECT_EQ(pcg->precision_fallbacks(), 0);  // the float copy converges on its own matrix
       EXPECT_LE(max_abs_diff(x, x_chol), (float_matrix ? 1e-5 : 1e-7) * max_abs(x_chol));
       if (!float_matrix) EXPECT_LE(relative_residual(A, b, x), 1.01e-10);
     }
@@ -273,7 +290,8 @@ TEST(Solver, SsorOverRelaxedMatchesCholmod) {
       pcg->analyze(A);
       ASSERT_EQ(pcg->solve(A, b.data(), x.data()), cloth::SolveStatus::Ok);
       EXPECT_LE(relative_residual(A, b, x), 1.01 * tol) << "omega " << omega;
-      EXPECT_NEAR(relative_residual(A, b, x), pcg->residual(), 0.1 * tol) << "omega " << omega;
+      EXPECT_NEAR(relative_residual(A, b, x), pcg->residual(), 1e-3 * tol) << "omega " << omega;
+      if (tol == 1e-3) EXPECT_GE(pcg->iterations(), 8) << "a sweep must take r afresh (kRefresh)";
     }
   }
   EXPECT_THROW(cloth::make_pcg_solver({.ssor_omega = 2.0}), std::invalid_argument);
@@ -346,6 +364,7 @@ TEST(Solver, PcgSolveChangedReloadsTheChangedRows) {
     const double bound = (float_matrix ? 1e-5 : 1e-7) * nrm;
     EXPECT_LE(err, bound) << "float matrix " << float_matrix;
     EXPECT_GT(stale, 100.0 * bound) << "the two systems are too close to tell apart";
+    EXPECT_EQ(pcg->precision_fallbacks(), 0) << "float matrix " << float_matrix;
   }
 }
 

@@ -12,10 +12,13 @@ import os
 import math
 import shutil
 import subprocess
+from pathlib import Path
 
 import pytest
 
 from buildpaths import program
+
+SCENE = Path(__file__).resolve().parents[2] / "tools" / "scenes" / "hanging_square.toml"
 
 
 def bench(*args, timeout=900) -> dict:
@@ -185,6 +188,28 @@ def test_haptic_subscribers_bad_input():
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2
     assert "--subscribers: must be a number of subscribers from 1 to 16, not 0" in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_step_preconditioners():
+    """The step benchmark names the preconditioner it ran, and SSOR needs fewer iterations than
+    block-Jacobi on the same release (the count, not the time, is asserted)."""
+    runs = {p: bench("step", "--scene", str(SCENE), "--steps", "200", "--pcg-preconditioner", p)
+            for p in ("ssor", "block-jacobi")}
+    for p, j in runs.items():
+        assert j["preconditioner"] == p
+        assert j["finite"] and j["events"]["solver_not_converged"] == 0
+    assert runs["ssor"]["solver_iterations_mean"] < 0.7 * runs["block-jacobi"]["solver_iterations_mean"]
+    # The same cloth either way: both solves meet the same tolerance.
+    assert abs(runs["ssor"]["lowest_vertex_height_m"] - runs["block-jacobi"]["lowest_vertex_height_m"]) < 1e-4
+
+
+@pytest.mark.parametrize("flag,value", [("--pcg-omega", "2.5"), ("--pcg-preconditioner", "ilu")])
+def test_step_bad_solver_flags(flag, value):
+    r = subprocess.run([str(program("hapticloth-bench")), "step", "--scene", str(SCENE), flag, value, "--json"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0
+    assert flag in r.stderr and value in r.stderr
     assert "Traceback" not in r.stderr
 
 

@@ -1,6 +1,6 @@
 // hapticloth-bench: benchmarks that print machine-readable results.
 //   hapticloth-bench step --scene FILE [--solver cholmod|pcg] [--dt S] [--alpha A] [--steps N] [--threads 1|2]
-//                         [--pinch] --json
+//                         [--pcg-preconditioner ssor|block-jacobi] [--pcg-omega W] [--pinch] --json
 //   hapticloth-bench haptic [--scene FILE] [--duration S] --json
 //   hapticloth-bench haptic --subscribers N [--duration S] [--cloth-rate HZ] --json
 //   hapticloth-bench timer [--ticks N] [--priority P] --json
