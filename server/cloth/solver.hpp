@@ -56,7 +56,7 @@ enum class PcgPreconditioner {
   BlockJacobi,
   /// Symmetric block Gauss-Seidel (SSOR with omega = 1) by Eisenstat's trick: an iteration reads
   /// the matrix once, as block-Jacobi's does, in two sweeps; 2.5x fewer iterations (9 on the
-  /// same square; 22 -> 9.5 on the pinched 4050-triangle square).
+  /// same square; 23 -> 9 on the pinched 4050-triangle square).
   Ssor,
 };
 const char* to_string(PcgPreconditioner p);

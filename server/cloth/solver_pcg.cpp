@@ -311,7 +311,7 @@ class PcgSolver final : public LinearSolver {
   // product costs one backward and one forward sweep, each over half the blocks: with t =
   // (E + L^T)^-1 p', A' p' = t + (E + L)^-1 (p' + (D - 2E) t), from A = (E + L) + (E + L^T) +
   // D - 2E. So an iteration reads the matrix once, as block-Jacobi's does, and the cloth's
-  // smooth modes converge in fewer (on the pinched 4050-triangle square 22 -> 9 a step). x is
+  // smooth modes converge in fewer (on the pinched 4050-triangle square 23 -> 9 a step). x is
   // carried along (x += alpha t), and so is the true residual r = b - A x (r -= alpha A t, the
   // forward sweep giving A t = L t + p' + (D - E) t), so the solve stops at |r| <= tolerance
   // |b| as block-Jacobi's does. That recursion drifts (A t is a difference of terms up to 1e8
