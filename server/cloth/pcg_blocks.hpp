@@ -36,6 +36,27 @@ inline __attribute__((always_inline)) bool inverse3(const double a[3][3], double
   return true;
 }
 
+// Scalar products with a 3x3 block B stored column-major with 4-lane columns, B(r, c) = B[4c + r]:
+// s += B x, s -= B x, s += B^T x (the few blocks of the fingertips' rows).
+template <class T>
+void add_block(const T* B, const double* x, double* s) {
+  s[0] += double(B[0]) * x[0] + double(B[4]) * x[1] + double(B[8]) * x[2];
+  s[1] += double(B[1]) * x[0] + double(B[5]) * x[1] + double(B[9]) * x[2];
+  s[2] += double(B[2]) * x[0] + double(B[6]) * x[1] + double(B[10]) * x[2];
+}
+template <class T>
+void sub_block(const T* B, const double* x, double* s) {
+  s[0] -= double(B[0]) * x[0] + double(B[4]) * x[1] + double(B[8]) * x[2];
+  s[1] -= double(B[1]) * x[0] + double(B[5]) * x[1] + double(B[9]) * x[2];
+  s[2] -= double(B[2]) * x[0] + double(B[6]) * x[1] + double(B[10]) * x[2];
+}
+template <class T>
+void add_block_t(const T* B, const double* x, double* s) {
+  s[0] += double(B[0]) * x[0] + double(B[1]) * x[1] + double(B[2]) * x[2];
+  s[1] += double(B[4]) * x[0] + double(B[5]) * x[1] + double(B[6]) * x[2];
+  s[2] += double(B[8]) * x[0] + double(B[9]) * x[1] + double(B[10]) * x[2];
+}
+
 // Block-sparse-row copy of a block3 SymCsr in two parts. The hub rows (block rows far longer
 // than a mesh's: the fingertip proxies, coupled to every vertex) and their columns are kept
 // apart, as the list of each hub row's non-zero blocks: a step uses the few blocks in contact
@@ -239,27 +260,20 @@ struct Bsr {
     for (std::size_t i = 0; i < hubs.size(); ++i) {
       const int h = hubs[i];
       const double* xh = x + 3 * h;
-      double yh0 = 0.0, yh1 = 0.0, yh2 = 0.0;
+      double yh[3] = {0.0, 0.0, 0.0};
       for (int e = hub_ptr[i]; e < hub_ptr[i + 1]; ++e) {
-        const T* B = hub_val.data() + kBlock * e;  // B(r, c) = B[4 c + r]
+        const T* B = hub_val.data() + kBlock * e;
         const int j = hub_col[e];
         const double* xj = x + 3 * j;
-        yh0 += double(B[0]) * xj[0] + double(B[4]) * xj[1] + double(B[8]) * xj[2];
-        yh1 += double(B[1]) * xj[0] + double(B[5]) * xj[1] + double(B[9]) * xj[2];
-        yh2 += double(B[2]) * xj[0] + double(B[6]) * xj[1] + double(B[10]) * xj[2];
+        add_block(B, xj, yh);
         if (is_hub[j]) continue;  // a hub's own row lists its block
-        const double d0 = double(B[0]) * xh[0] + double(B[1]) * xh[1] + double(B[2]) * xh[2];
-        const double d1 = double(B[4]) * xh[0] + double(B[5]) * xh[1] + double(B[6]) * xh[2];
-        const double d2 = double(B[8]) * xh[0] + double(B[9]) * xh[1] + double(B[10]) * xh[2];
-        y[3 * j] += d0;
-        y[3 * j + 1] += d1;
-        y[3 * j + 2] += d2;
-        dot += xj[0] * d0 + xj[1] * d1 + xj[2] * d2;
+        double d[3] = {0.0, 0.0, 0.0};
+        add_block_t(B, xh, d);
+        for (int c = 0; c < 3; ++c) y[3 * j + c] += d[c];
+        dot += xj[0] * d[0] + xj[1] * d[1] + xj[2] * d[2];
       }
-      y[3 * h] = yh0;
-      y[3 * h + 1] = yh1;
-      y[3 * h + 2] = yh2;
-      dot += xh[0] * yh0 + xh[1] * yh1 + xh[2] * yh2;
+      for (int c = 0; c < 3; ++c) y[3 * h + c] = yh[c];
+      dot += xh[0] * yh[0] + xh[1] * yh[1] + xh[2] * yh[2];
     }
     return dot;
   }

@@ -276,34 +276,6 @@ class PcgSolver final : public LinearSolver {
     return rz;
   }
 
-  // s -= B x for a 3x3 block B stored column-major with 4-lane columns.
-  template <class T>
-  static void sub_block(const T* B, const double* x, double& s0, double& s1, double& s2) {
-    s0 -= double(B[0]) * x[0] + double(B[4]) * x[1] + double(B[8]) * x[2];
-    s1 -= double(B[1]) * x[0] + double(B[5]) * x[1] + double(B[9]) * x[2];
-    s2 -= double(B[2]) * x[0] + double(B[6]) * x[1] + double(B[10]) * x[2];
-  }
-  // s += B x.
-  template <class T>
-  static void add_block(const T* B, const double* x, double* s) {
-    s[0] += double(B[0]) * x[0] + double(B[4]) * x[1] + double(B[8]) * x[2];
-    s[1] += double(B[1]) * x[0] + double(B[5]) * x[1] + double(B[9]) * x[2];
-    s[2] += double(B[2]) * x[0] + double(B[6]) * x[1] + double(B[10]) * x[2];
-  }
-  // s += B^T x.
-  template <class T>
-  static void add_block_t(const T* B, const double* x, double* s) {
-    s[0] += double(B[0]) * x[0] + double(B[1]) * x[1] + double(B[2]) * x[2];
-    s[1] += double(B[4]) * x[0] + double(B[5]) * x[1] + double(B[6]) * x[2];
-    s[2] += double(B[8]) * x[0] + double(B[9]) * x[1] + double(B[10]) * x[2];
-  }
-  void apply_inv(int br, double s0, double s1, double s2, double* z) const {
-    const double* m = inv_.data() + 9 * br;
-    z[0] = m[0] * s0 + m[1] * s1 + m[2] * s2;
-    z[1] = m[3] * s0 + m[4] * s1 + m[5] * s2;
-    z[2] = m[6] * s0 + m[7] * s1 + m[8] * s2;
-  }
-
   // Symmetric block Gauss-Seidel (SSOR) by Eisenstat's trick. A = L + D + L^T with D the 3x3
   // diagonal blocks and the cluster's dense block, the cluster ordered last, and E = D / omega
   // (the cluster's block unrelaxed); the preconditioner is M = (E + L) E^-1 (E + L^T), SSOR's
@@ -418,7 +390,7 @@ class PcgSolver final : public LinearSolver {
       }
     for_cluster_blocks(M, [&](int j, const T* B, int a) {
       double* s = cz_.data() + 3 * a;
-      sub_block(B, y + 3 * j, s[0], s[1], s[2]);
+      sub_block(B, y + 3 * j, s);
     });
     cholesky_solve(dense_.data(), m, cz_.data());
     scatter_cluster(cz_.data(), y);
@@ -607,7 +579,7 @@ class PcgSolver final : public LinearSolver {
       std::fill(cw_.begin(), cw_.begin() + m, 0.0);
       gather_cluster(zb, ctmp_.data());
       for_cluster_blocks(M, [&](int j, const T* B, int a) {
-        sub_block(B, u + 3 * j, cz_[3 * a], cz_[3 * a + 1], cz_[3 * a + 2]);
+        sub_block(B, u + 3 * j, cz_.data() + 3 * a);
         add_block(B, t + 3 * j, cw_.data() + 3 * a);
         add_block(B, rb + 3 * j, ctmp_.data() + 3 * a);
       });

@@ -105,6 +105,20 @@ double max_abs(const std::vector<double>& x) {
   return m;
 }
 
+// A PCG solve of A x = b from x = 0 with `po`: the solver (for its counters) and x; the
+// status, which must be Ok, into `st`.
+struct PcgRun {
+  std::unique_ptr<cloth::LinearSolver> pcg;
+  std::vector<double> x;
+  cloth::SolveStatus st;
+};
+PcgRun pcg_solve(const cloth::SymCsr& A, const std::vector<double>& b, const cloth::PcgOptions& po) {
+  PcgRun run{cloth::make_pcg_solver(po), std::vector<double>(A.n, 0.0), cloth::SolveStatus::Ok};
+  run.pcg->analyze(A);
+  run.st = run.pcg->solve(A, b.data(), run.x.data());
+  return run;
+}
+
 double max_abs_diff(const std::vector<double>& x, const std::vector<double>& y) {
   double m = 0.0;
   for (size_t i = 0; i < x.size(); ++i) m = std::max(m, std::abs(x[i] - y[i]));
@@ -187,10 +201,8 @@ TEST(Solver, SsorConvergesInFewerIterationsThanBlockJacobi) {
   int iterations[2];
   for (auto pre : kPreconditioners) {
     SCOPED_TRACE(cloth::to_string(pre));
-    std::vector<double> x(A.n, 0.0);
-    auto pcg = cloth::make_pcg_solver({.tolerance = 1e-3, .single_precision_matrix = true, .preconditioner = pre});
-    pcg->analyze(A);
-    ASSERT_EQ(pcg->solve(A, b.data(), x.data()), cloth::SolveStatus::Ok);
+    const auto [pcg, x, st] = pcg_solve(A, b, {.tolerance = 1e-3, .single_precision_matrix = true, .preconditioner = pre});
+    ASSERT_EQ(st, cloth::SolveStatus::Ok);
     EXPECT_EQ(pcg->precision_fallbacks(), 0);  // the float copy solved it
     EXPECT_LE(relative_residual(A, b, x), 1.01e-3);
     EXPECT_LE(max_abs_diff(x, x_chol), 0.05 * max_abs(x_chol));
@@ -198,10 +210,8 @@ TEST(Solver, SsorConvergesInFewerIterationsThanBlockJacobi) {
   }
   EXPECT_LT(iterations[1], 0.6 * iterations[0]) << "SSOR " << iterations[1] << ", block-Jacobi " << iterations[0];
   // Over-relaxed, a free sheet converges in fewer still (docs/performance.md).
-  std::vector<double> x(A.n, 0.0);
-  auto relaxed = cloth::make_pcg_solver({.tolerance = 1e-3, .single_precision_matrix = true, .ssor_omega = 1.4});
-  relaxed->analyze(A);
-  ASSERT_EQ(relaxed->solve(A, b.data(), x.data()), cloth::SolveStatus::Ok);
+  const auto [relaxed, x, st] = pcg_solve(A, b, {.tolerance = 1e-3, .single_precision_matrix = true, .ssor_omega = 1.4});
+  ASSERT_EQ(st, cloth::SolveStatus::Ok);
   EXPECT_EQ(relaxed->precision_fallbacks(), 0);
   EXPECT_LE(relative_residual(A, b, x), 1.01e-3);
   EXPECT_LT(relaxed->iterations(), iterations[1]) << "omega 1.4: " << relaxed->iterations() << ", 1: " << iterations[1];
@@ -404,10 +414,8 @@ TEST(Solver, PcgWithFloatMatrixMeetsToleranceOnTheDoubleMatrix) {
   const auto [A, b, x1] = cholmod_reference(sheet, rng, 0.005);
   for (auto pre : kPreconditioners) {
     SCOPED_TRACE(cloth::to_string(pre));
-    std::vector<double> x2(A.n, 0.0);
-    auto pcg = cloth::make_pcg_solver({.tolerance = 1e-4, .single_precision_matrix = true, .preconditioner = pre});
-    pcg->analyze(A);
-    ASSERT_EQ(pcg->solve(A, b.data(), x2.data()), cloth::SolveStatus::Ok);
+    const auto [pcg, x2, st] = pcg_solve(A, b, {.tolerance = 1e-4, .single_precision_matrix = true, .preconditioner = pre});
+    ASSERT_EQ(st, cloth::SolveStatus::Ok);
     EXPECT_GT(pcg->iterations(), 1);
     EXPECT_LE(pcg->residual(), 1e-4);
     EXPECT_LE(relative_residual(A, b, x2), 1.01e-4);
