@@ -122,6 +122,7 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
     groups_ = group_elements(model_.elements, partition.separators);
     part_energy_.assign(part_groups_.size(), 0.0);
     pool_ = std::make_unique<WorkerPool>();
+    solver_->use_pool(pool_.get());
   } else {
     std::vector<int> all(model_.num_triangles());
     std::iota(all.begin(), all.end(), 0);
@@ -325,6 +326,7 @@ bool Integrator::proxy_response(std::vector<Mat3>& R) {
     unit_.setZero(A_.n);
   }
   const double h = last_h_, ah = alpha_ * h;
+  const WorkerPool::Burst burst(pool_.get());  // 3 P solves in a row (single_step)
   for (int q = 0; q < P; ++q)
     for (int c = 0; c < 3; ++c) {
       // d b_q / d T_q = h k_q (the coupling's right-hand side), so d dv / d T_q = A^-1 h k_q e;
@@ -347,6 +349,9 @@ bool Integrator::proxy_response(std::vector<Mat3>& R) {
 // One (sub)step of eq. 9 that either is accepted into `s` or fails with its cause counted.
 Integrator::Attempt Integrator::single_step(ClothState& s, double h) {
   last_h_ = h;
+  // The helper thread spins from the assembly to the last re-solve: a solve's iterations share
+  // two short runs each with it, which a futex wake per run would cost more than they save.
+  const WorkerPool::Burst burst(pool_.get());
   const auto t0 = Clock::now();
   if (!assemble(s, h, cfg_.jacobian)) {
     ++events_.non_finite;

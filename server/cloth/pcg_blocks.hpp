@@ -128,11 +128,11 @@ struct Bsr {
     hub_val.assign(kBlock * static_cast<std::size_t>(hub_blocks), T(0));
   }
 
-  bool load(const SymCsr& A) {
-    const int nb = static_cast<int>(diag.size());
+  // Block rows [lo, hi) (load_row), without the hubs (load_hubs): rows apart write apart, so
+  // two threads may take two ranges. False if a diagonal block is not positive definite.
+  bool load_rows(const SymCsr& A, int lo, int hi) {
     bool pd = true;
-    for (int br = 0; br < nb; ++br) pd = load_row(A, br) && pd;
-    load_hubs(A);
+    for (int br = lo; br < hi; ++br) pd = load_row(A, br) && pd;
     return pd;
   }
 

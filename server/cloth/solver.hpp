@@ -8,6 +8,8 @@
 
 namespace hapticloth::cloth {
 
+class WorkerPool;
+
 enum class SolveStatus { Ok, NotConverged, NotPositiveDefinite, NumericalError };
 const char* to_string(SolveStatus s);
 
@@ -17,6 +19,9 @@ class LinearSolver {
  public:
   virtual ~LinearSolver() = default;
   virtual const char* name() const = 0;
+  /// A second thread to share the work with (the integrator's assembly pool), or none. The
+  /// solver uses it only inside the caller's run; results do not depend on it.
+  virtual void use_pool(WorkerPool* pool) { (void)pool; }
   /// Symbolic work that depends on the pattern only.
   virtual void analyze(const SymCsr& A) = 0;
   /// Solves A x = b. On entry x holds a starting guess (iterative solvers use it).

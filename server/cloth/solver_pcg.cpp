@@ -11,6 +11,7 @@
 
 #include "cloth/pcg_blocks.hpp"
 #include "cloth/solver.hpp"
+#include "cloth/worker_pool.hpp"
 
 namespace hapticloth::cloth {
 
@@ -42,6 +43,7 @@ class PcgSolver final : public LinearSolver {
       throw std::invalid_argument("pcg: ssor_omega must be in [1, 2)");
   }
   const char* name() const override { return "pcg"; }
+  void use_pool(WorkerPool* pool) override { pool_ = pool; }
 
   void analyze(const SymCsr& A) override {
     if (A.n % 3 != 0) throw std::invalid_argument("pcg: matrix size must be a multiple of 3");
@@ -68,7 +70,7 @@ class PcgSolver final : public LinearSolver {
     if (ssor_ && static_cast<int>(hub_rows.size()) > kMaxCluster)
       throw std::invalid_argument("pcg: SSOR takes at most " + std::to_string(kMaxCluster) + " hub rows, not " +
                                   std::to_string(hub_rows.size()) + " (use block-jacobi)");
-    sweep_order(nb);
+    sweep_order(A, hub_rows);
     mf_.with_dinv = md_.with_dinv = ssor_;
     mf_.dinv_scale = md_.dinv_scale = omega_;
     if (opt_.single_precision_matrix) mf_.build_pattern(A, hub_rows, rank_);
@@ -158,12 +160,34 @@ class PcgSolver final : public LinearSolver {
   bool prepare(Bsr<T>& M, const SymCsr& A) {
     prepared_ = false;
     const int nb = n_ / 3;
-    if (!M.load(A)) return false;
+    if (!load(M, A)) return false;
     for (int br = 0; br < nb && !ssor_; ++br)
       if (!invert_diagonal(A, br, M.diag[br])) return false;
     if (!hubs_.empty() && !factor_cluster(M, A)) return false;
     prepared_ = true;
     return true;
+  }
+
+  // The matrix copy, in kLoadChunks pieces that the pool's two threads take in turn (a late
+  // helper leaves the caller more of them). False if a diagonal block is not positive definite.
+  template <class T>
+  bool load(Bsr<T>& M, const SymCsr& A) {
+    const int nb = n_ / 3;
+    std::array<char, kLoadChunks> ok{};
+    auto chunk = [&](int c) { ok[c] = M.load_rows(A, nb * c / kLoadChunks, nb * (c + 1) / kLoadChunks); };
+    in_parallel(kLoadChunks, chunk);
+    M.load_hubs(A);
+    return std::all_of(ok.begin(), ok.end(), [](char c) { return c != 0; });
+  }
+
+  // f(i) for i in [0, n): on the pool's two threads when there is one.
+  template <class F>
+  void in_parallel(int n, F& f) {
+    if (pool_) {
+      pool_->run(n, f);
+      return;
+    }
+    for (int i = 0; i < n; ++i) f(i);
   }
 
   // Block-Jacobi's preconditioner: the inverse of block row br's 3x3 diagonal block (at column
@@ -289,6 +313,8 @@ class PcgSolver final : public LinearSolver {
   // |b| as block-Jacobi's does. That recursion drifts (A t is a difference of terms up to 1e8
   // times larger with stiff contact springs: 1e-7 relative in test_solver's pinch), so every
   // kRefresh-th sweep also takes r = (E + L) r' = E r' + L r' afresh from the transformed one.
+  // An iteration is two passes that the pool's two threads share (sweep_order): the product,
+  // and the update with the next z' = E r'.
   template <class T>
   SolveStatus iterate_ssor(const Bsr<T>& M, const double* b, double* x, int n, int nb) {
     double bn2 = 0.0;
@@ -298,27 +324,24 @@ class PcgSolver final : public LinearSolver {
     double* rb = z_.data();   // r' = (E + L)^-1 r
     double* zb = q_.data();   // z' = E r'
     double* pb = p_.data();   // p'
-    double* t = t_.data();    // (E + L^T)^-1 p'
-    double* u = u_.data();    // (E + L)^-1 (p' + (D - 2E) t)
-    double* at = at_.data();  // A t
     double rr = residual_and_lower_solve(M, b, x, r, rb);
     const double goal2 = opt_.tolerance * opt_.tolerance * bn2;
     if (rr <= goal2) {
       residual_ = std::sqrt(rr) / bnorm;
       return SolveStatus::Ok;
     }
-    double rz = multiply_d(M, rb, zb, nb);
+    double rz = multiply_d(M, rb, zb, 0, nb) + multiply_cluster_d(rb, zb);
     std::copy(zb, zb + n, pb);
-    int checked = 0;  // the iteration whose converged residual was checked
+    double beta = 0.0;  // p' = z' + beta p', taken row by row in the next product
+    int checked = 0;    // the iteration whose converged residual was checked
     for (int it = 1; it <= opt_.max_iterations; ++it) {
-      const double pt = backward_sweep(M, pb, t);
-      const bool refresh = it % kRefresh == 0;
-      const double pu = refresh ? forward_sweep<true>(M, pb, t, u, at, rb, zb, r)
-                                : forward_sweep<false>(M, pb, t, u, at, rb, zb, r);
-      const double pq = pt + pu;
+      const bool refresh = it % kRefresh == 0, turn = it > 1;
+      const double pq = refresh ? product<true>(M, turn, beta, pb, zb, rb, r)
+                                : product<false>(M, turn, beta, pb, zb, rb, r);
       iterations_ = it;
       if (!(pq > 0.0)) return std::isfinite(pq) ? SolveStatus::NotPositiveDefinite : SolveStatus::NumericalError;
-      rr = update(rz / pq, x, r, rb, n);
+      double rz_new = 0.0;
+      rr = update(M, rz / pq, x, r, rb, zb, rz_new);
       if (!std::isfinite(rr)) return SolveStatus::NumericalError;
       if (rr <= goal2 && opt_.tolerance < kCheckBelow && checked != it) {
         // A tolerance near the recursion's drift: the residual taken afresh decides.
@@ -329,53 +352,75 @@ class PcgSolver final : public LinearSolver {
         residual_ = std::sqrt(rr) / bnorm;
         return SolveStatus::Ok;
       }
-      const double rz_new = multiply_d(M, rb, zb, nb);
-      const double beta = rz_new / rz;
-      for (int i = 0; i < n; ++i) pb[i] = zb[i] + beta * pb[i];
+      beta = rz_new / rz;
       rz = rz_new;
     }
     residual_ = std::sqrt(rr) / bnorm;
     return SolveStatus::NotConverged;
   }
 
+  // The operator's product A' p' (with turn, p' = z' + beta p' first): t = (E + L^T)^-1 p' and
+  // u = (E + L)^-1 (p' + (D - 2E) t) into t_ and u_, A t into at_, and with kFresh the residual
+  // r afresh; returns p' . A' p' = p' . t + p' . u. Backward, the cluster (last in the order),
+  // the separator, then the two parts at once, each of which goes on forward through its own
+  // rows (a part's lower blocks are its own); forward, the separator and the cluster after them.
+  template <bool kFresh, class T>
+  double product(const Bsr<T>& M, bool turn, double beta, double* pb, const double* zb, double* rb,
+                 double* r) {
+    double* t = t_.data();
+    double* u = u_.data();
+    double* at = at_.data();
+    if (turn) {
+      next_direction(beta, pb, zb, seg_[2], seg_[3]);
+      for (int c : cluster_) direction_row(beta, pb, zb, c);
+    }
+    const double pt_c = backward_cluster(M, pb, t);
+    for (int c : cluster_) u[3 * c] = u[3 * c + 1] = u[3 * c + 2] = 0.0;
+    // The cluster is last in the order: its columns are no row's lower part, so r'_C is out of
+    // the rows' sums (put back by forward_cluster) as t_C and u_C are.
+    if constexpr (kFresh) {
+      gather_cluster(rb, crb_.data());
+      for (int c : cluster_) rb[3 * c] = rb[3 * c + 1] = rb[3 * c + 2] = 0.0;
+    }
+    const double pt_s = sum3(backward_rows(M, pb, t, seg_[2], seg_[3]));
+    auto part = [&](int q) {
+      if (turn) next_direction(beta, pb, zb, seg_[q], seg_[q + 1]);
+      const V4 pt = backward_rows(M, pb, t, seg_[q], seg_[q + 1]);
+      const V4 pu = forward_rows<kFresh>(M, pb, t, u, at, rb, zb, r, seg_[q], seg_[q + 1]);
+      part_sum_[q] = sum3(pt) + sum3(pu);
+    };
+    in_parallel(2, part);
+    const double pu_s = sum3(forward_rows<kFresh>(M, pb, t, u, at, rb, zb, r, seg_[2], seg_[3]));
+    const double pu_c = forward_cluster<kFresh>(M, pb, t, u, at, rb, zb, r);
+    return pt_c + pt_s + part_sum_[0] + part_sum_[1] + pu_s + pu_c;
+  }
+
+  // p' = z' + beta p' on the rows at order_ [begin, end) outside the cluster, and on one row.
+  void next_direction(double beta, double* pb, const double* zb, int begin, int end) const {
+    for (int i = begin; i < end; ++i)
+      if (kind_[order_[i]] != kCluster) direction_row(beta, pb, zb, order_[i]);
+  }
+  static void direction_row(double beta, double* pb, const double* zb, int br) {
+    for (int c = 3 * br; c < 3 * br + 3; ++c) pb[c] = zb[c] + beta * pb[c];
+  }
+
   // r = b - A x and r' = (E + L)^-1 r in one pass over the matrix (row i's product needs x
-  // only; its lower solve, the rows before it), returning r . r. The cluster's columns are
-  // left out of the rows' products (x_C = 0 in the padded copy) and added from the cluster's
-  // own blocks, as the sweeps do.
+  // only; its lower solve, the rows before it), returning r . r: the two parts at once, then
+  // the separator. The cluster's columns are left out of the rows' products (x_C = 0 in the
+  // padded copy) and added from the cluster's own blocks, as the sweeps do.
   template <class T>
   double residual_and_lower_solve(const Bsr<T>& M, const double* b, const double* x, double* r, double* y) {
-    constexpr int K = Bsr<T>::kBlock;
-    const int n = n_;
     double* x0 = x0_.data();
-    std::copy(x, x + n, x0);
+    std::copy(x, x + n_, x0);
     gather_cluster(x0, cx_.data());
     for (int c : cluster_) {
       x0[3 * c] = x0[3 * c + 1] = x0[3 * c + 2] = 0.0;
       y[3 * c] = y[3 * c + 1] = y[3 * c + 2] = 0.0;
     }
     cluster_to_touched(M, cx_.data());
-    const T* val = M.val.data();
-    const int* xoff = M.xoff.data();
-    V4 rr{};
-    for (int br : order_) {
-      const int kind = kind_[br];
-      if (kind == kCluster) continue;
-      V4 ax = kind == kTouched ? load4(w_.data() + 3 * br) : V4{};  // A x
-      V4 s{};                                                       // -L y
-      const int k0 = M.rowptr[br], kd = M.dblk[br], k1 = M.rowptr[br + 1];
-      for (int k = k0; k < kd; ++k) {
-        const T* B = val + K * k;
-        ax += block_times(B, x0 + xoff[k]);
-        s -= block_times(B, y + xoff[k]);
-      }
-      for (int k = kd; k < k1; ++k) ax += block_times(val + K * k, x0 + xoff[k]);
-      const V4 bi{b[3 * br], b[3 * br + 1], b[3 * br + 2], 0.0};
-      const V4 ri = bi - ax;  // lane 3 is 0
-      store3(r + 3 * br, ri);
-      rr += ri * ri;
-      store3(y + 3 * br, block_times(M.dinv.data() + 12 * br, ri + s));
-    }
-    double rr_sum = sum3(rr);
+    auto part = [&](int q) { part_sum_[q] = sum3(residual_rows(M, b, x0, r, y, seg_[q], seg_[q + 1])); };
+    in_parallel(2, part);
+    double rr_sum = part_sum_[0] + part_sum_[1] + sum3(residual_rows(M, b, x0, r, y, seg_[2], seg_[3]));
     if (cluster_.empty()) return rr_sum;
     // r_C = b_C - A_CN x_N - D_C x_C, y_C = D_C^-1 (r_C - A_CN y_N).
     const int m = 3 * static_cast<int>(cluster_.size());
@@ -395,6 +440,36 @@ class PcgSolver final : public LinearSolver {
     cholesky_solve(dense_.data(), m, cz_.data());
     scatter_cluster(cz_.data(), y);
     return rr_sum;
+  }
+
+  // residual_and_lower_solve on the rows at order_ [begin, end) outside the cluster; returns
+  // their r . r in lanes.
+  template <class T>
+  V4 residual_rows(const Bsr<T>& M, const double* b, const double* x0, double* r, double* y, int begin,
+                   int end) const {
+    constexpr int K = Bsr<T>::kBlock;
+    const T* val = M.val.data();
+    const int* xoff = M.xoff.data();
+    V4 rr{};
+    for (int i = begin; i < end; ++i) {
+      const int br = order_[i], kind = kind_[br];
+      if (kind == kCluster) continue;
+      V4 ax = kind == kTouched ? load4(w_.data() + 3 * br) : V4{};  // A x
+      V4 s{};                                                       // -L y
+      const int k0 = M.rowptr[br], kd = M.dblk[br], k1 = M.rowptr[br + 1];
+      for (int k = k0; k < kd; ++k) {
+        const T* B = val + K * k;
+        ax += block_times(B, x0 + xoff[k]);
+        s -= block_times(B, y + xoff[k]);
+      }
+      for (int k = kd; k < k1; ++k) ax += block_times(val + K * k, x0 + xoff[k]);
+      const V4 bi{b[3 * br], b[3 * br + 1], b[3 * br + 2], 0.0};
+      const V4 ri = bi - ax;  // lane 3 is 0
+      store3(r + 3 * br, ri);
+      rr += ri * ri;
+      store3(y + 3 * br, block_times(M.dinv.data() + 12 * br, ri + s));
+    }
+    return rr;
   }
 
   // w_j = A_jC v_C for every row j the cluster reaches.
@@ -424,49 +499,67 @@ class PcgSolver final : public LinearSolver {
     return s;
   }
 
-  // x += alpha t, r -= alpha A t, r' -= alpha (t + u) (= A' p'), returning r . r.
-  double update(double alpha, double* x, double* r, double* rb, int n) {
+  // x += alpha t, r -= alpha A t, r' -= alpha (t + u) (= A' p'), then z' = E r': each part
+  // on the thread that swept it (its rows' data in that core's cache), then the separator and
+  // the cluster. Returns r . r, and r' . z' in rz.
+  template <class T>
+  double update(const Bsr<T>& M, double alpha, double* x, double* r, double* rb, double* zb, double& rz) {
+    auto part = [&](int q) { part_sum_[q] = update_rows(M, alpha, x, r, rb, zb, seg_[q], seg_[q + 1], part_rz_[q]); };
+    in_parallel(2, part);
+    const int nb = n_ / 3;
+    double rz_s = 0.0;
+    const double rr_s = update_rows(M, alpha, x, r, rb, zb, seg_[2], nb, rz_s);
+    rz = part_rz_[0] + part_rz_[1] + rz_s + multiply_cluster_d(rb, zb);
+    return part_sum_[0] + part_sum_[1] + rr_s;
+  }
+
+  // update on the rows at order_ [begin, end), z' outside the cluster; returns their r . r and
+  // their r' . z' in rz.
+  template <class T>
+  double update_rows(const Bsr<T>& M, double alpha, double* x, double* r, double* rb, double* zb, int begin,
+                     int end, double& rz) const {
+    constexpr int K = Bsr<T>::kBlock;
     const double* t = t_.data();
     const double* u = u_.data();
     const double* at = at_.data();
-    const V4 a = splat(alpha);
-    V4 rr{};
-    int i = 0;
-    for (; i + 4 <= n; i += 4) {
-      const V4 xi = load4(x + i) + a * load4(t + i);
-      const V4 ri = load4(r + i) - a * load4(at + i);
-      const V4 bi = load4(rb + i) - a * (load4(t + i) + load4(u + i));
-      std::memcpy(x + i, &xi, sizeof xi);
-      std::memcpy(r + i, &ri, sizeof ri);
-      std::memcpy(rb + i, &bi, sizeof bi);
+    const V4 a = splat(alpha), scale = splat(1.0 / omega_);
+    V4 rr{}, dot{};
+    for (int i = begin; i < end; ++i) {
+      const int br = order_[i], o = 3 * br;
+      const V4 ti = load4(t + o);
+      const V4 xi = load4(x + o) + a * ti;
+      const V4 ri = load4(r + o) - a * load4(at + o);
+      const V4 bi = load4(rb + o) - a * (ti + load4(u + o));
+      store3(x + o, xi);
+      store3(r + o, ri);
+      store3(rb + o, bi);
       rr += ri * ri;
+      if (kind_[br] == kCluster) continue;
+      const V4 zi = scale * block_times(M.val.data() + K * M.dblk[br], rb + o);  // lane 3 is 0
+      store3(zb + o, zi);
+      dot += bi * zi;
     }
-    double s = rr[0] + rr[1] + rr[2] + rr[3];
-    for (; i < n; ++i) {
-      x[i] += alpha * t[i];
-      r[i] -= alpha * at[i];
-      rb[i] -= alpha * (t[i] + u[i]);
-      s += r[i] * r[i];
-    }
-    return s;
+    rz = sum3(dot);
+    return sum3(rr);
   }
 
-  // z = E r (the 3x3 diagonal blocks over omega, the cluster's dense block), returning r . z.
+  // z = E r (the 3x3 diagonal blocks over omega) on block rows [lo, hi) outside the cluster,
+  // returning their r . z.
   template <class T>
-  double multiply_d(const Bsr<T>& M, const double* r, double* z, int nb) {
+  double multiply_d(const Bsr<T>& M, const double* r, double* z, int lo, int hi) const {
     constexpr int K = Bsr<T>::kBlock;
     const T* val = M.val.data();
     const int* dblk = M.dblk.data();
     const signed char* kind = kind_.data();
     const V4 scale = splat(1.0 / omega_);
     V4 dot{};
-    for (int br = 0; br < nb; ++br) {
+    for (int br = lo; br < hi; ++br) {
       if (kind[br] == kCluster) continue;
       const V4 zi = scale * block_times(val + K * dblk[br], r + 3 * br);  // lane 3 is 0
       store3(z + 3 * br, zi);
       dot += load4(r + 3 * br) * zi;
     }
-    return sum3(dot) + multiply_cluster_d(r, z);
+    return sum3(dot);
   }
 
   // z_C = D_C r_C, returning r_C . z_C.
@@ -481,45 +574,143 @@ class PcgSolver final : public LinearSolver {
     return rz;
   }
 
-  // The sweeps' row order: the rows split into kStreams runs of consecutive rows, taken in
-  // turn (run 0's first row, run 1's first row, ...). Within a run the order is the mesh's;
-  // the runs' rows depend on each other only where runs meet, so a sweep advances kStreams
-  // chains at once instead of waiting on each row's predecessor.
-  void sweep_order(int nb) {
-    const int len = (nb + kStreams - 1) / kStreams;
+  // The sweeps' row order, for two threads: the cloth's rows in two parts that share no block,
+  // then the separator between them, then the hubs (always in the cluster). The sweeps take
+  // the parts at once and the separator after them (forward) or before them (backward). The
+  // parts are the mesh's first and second half, less the rows of the first that reach the
+  // second (a grid's middle row): so the two threads' rows, and their vectors' entries, meet
+  // in memory at one place only (on the pinched 4050-triangle square, split so, an iteration's
+  // update took 9 us; split along a diagonal, whose cache lines the two cores share on every
+  // mesh row, 17 us). A mesh numbered so that this separator is large is split by levels instead
+  // (split_by_levels). Within a part the order is the mesh's. (Each part taken as two runs in
+  // turn, so that a sweep advances two chains of rows at once, cost more iterations than it
+  // saved: 9.2 -> 9.8 a step on the pinched 4050-triangle square, 7.0 -> 7.8 on the released
+  // 15842-triangle one, for 4-7% less time per iteration.)
+  void sweep_order(const SymCsr& A, const std::vector<int>& hub_rows) {
+    const int nb = A.n / 3;
+    std::vector<char> hub(nb, 0);
+    for (int h : hub_rows) hub[h] = 1;
+    std::array<std::vector<int>, 3> rows;  // part 0, part 1, separator; each in the mesh's order
+    int cloth = 0;
+    for (int br = 0; br < nb; ++br) cloth += !hub[br];
+    for (int br = 0, seen = 0; br < nb; ++br) {
+      if (hub[br]) continue;
+      const bool first = 2 * seen++ < cloth;
+      rows[first ? 0 : 1].push_back(br);
+    }
+    std::vector<char> second(nb, 0);
+    for (int br : rows[1]) second[br] = 1;
+    std::vector<int> inner;
+    for (int br : rows[0]) {
+      const int o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
+      bool reaches = false;
+      for (int k = 0; k < len && !reaches; k += 3) reaches = second[A.col[o + k] / 3] != 0;
+      (reaches ? rows[2] : inner).push_back(br);
+    }
+    rows[0].swap(inner);
+    if (8 * static_cast<int>(rows[2].size()) > cloth) rows = split_by_levels(A, hub);
     order_.clear();
+    for (int q = 0; q < 3; ++q) {
+      seg_[q] = static_cast<int>(order_.size());
+      order_.insert(order_.end(), rows[q].begin(), rows[q].end());
+    }
+    seg_[3] = static_cast<int>(order_.size());
+    order_.insert(order_.end(), hub_rows.begin(), hub_rows.end());
     rank_.assign(nb, 0);
-    for (int pos = 0; pos < len; ++pos)
-      for (int s = 0; s < kStreams; ++s) {
-        const int br = s * len + pos;
-        if (br >= nb) continue;
-        rank_[br] = static_cast<int>(order_.size());
-        order_.push_back(br);
-      }
+    for (int i = 0; i < nb; ++i) rank_[order_[i]] = i;
+    check_parts_apart(A, hub);
   }
 
-  // t = (E + L^T)^-1 p, returning p . t. The cluster first (it is last in the order), its
-  // share A_jC t_C in the rows j it reaches, then the rows outside it, last to first. t_C is
-  // left in ct_, and 0 in t for forward_sweep.
-  template <class T>
-  double backward_sweep(const Bsr<T>& M, const double* p, double* t) {
-    constexpr int K = Bsr<T>::kBlock;
-    double pt = 0.0;
-    if (!cluster_.empty()) {
-      const int m = 3 * static_cast<int>(cluster_.size());
-      gather_cluster(p, ct_.data());
-      cholesky_solve(dense_.data(), m, ct_.data());
-      for (size_t a = 0; a < cluster_.size(); ++a)
-        for (int c = 0; c < 3; ++c) pt += ct_[3 * a + c] * p[3 * cluster_[a] + c];
-      cluster_to_touched(M, ct_.data());
-      for (int c : cluster_) t[3 * c] = t[3 * c + 1] = t[3 * c + 2] = 0.0;
+  // The two parts' sweeps run at once on two threads: a block joining them would be a data race
+  // (and results that depend on timing). Checked once per pattern; throws std::logic_error.
+  void check_parts_apart(const SymCsr& A, const std::vector<char>& hub) const {
+    std::vector<signed char> part(A.n / 3, -1);
+    for (int q = 0; q < 2; ++q)
+      for (int i = seg_[q]; i < seg_[q + 1]; ++i) part[order_[i]] = static_cast<signed char>(q);
+    for (int i = seg_[0]; i < seg_[2]; ++i) {
+      const int br = order_[i], o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
+      for (int k = 0; k < len; k += 3) {
+        const int j = A.col[o + k] / 3;
+        if (!hub[j] && part[j] >= 0 && part[j] != part[br])
+          throw std::logic_error("pcg: block rows " + std::to_string(br) + " and " + std::to_string(j) +
+                                 " join the two parts of the sweeps");
+      }
     }
+  }
+
+  // Two parts and their separator from a breadth-first level structure (from a pseudo-
+  // peripheral row of each connected piece): a row's blocks reach its own level and the two
+  // beside it only, so the level at which the count of rows passes half parts the levels before
+  // it from those after it. Each in the mesh's order.
+  static std::array<std::vector<int>, 3> split_by_levels(const SymCsr& A, const std::vector<char>& hub) {
+    const int nb = A.n / 3;
+    std::vector<int> level(nb, -1), queue;
+    queue.reserve(nb);
+    auto bfs = [&](int from, int base) {  // levels from base; returns the last row reached
+      queue.assign(1, from);
+      level[from] = base;
+      for (size_t h = 0; h < queue.size(); ++h) {
+        const int br = queue[h], o = A.rowptr[3 * br], len = A.rowptr[3 * br + 1] - o;
+        for (int k = 0; k < len; k += 3) {
+          const int j = A.col[o + k] / 3;
+          if (hub[j] || level[j] >= 0) continue;
+          level[j] = level[br] + 1;
+          queue.push_back(j);
+        }
+      }
+      return queue.back();
+    };
+    int levels = 0;  // each connected piece gets levels after the last one's
+    for (int br = 0; br < nb; ++br) {
+      if (hub[br] || level[br] >= 0) continue;
+      const int far = bfs(br, levels);  // the farthest row from br starts the piece's levels
+      for (int j : queue) level[j] = -1;
+      bfs(far, levels);
+      for (int j : queue) levels = std::max(levels, level[j] + 1);
+    }
+    std::vector<int> count(levels + 1, 0);
+    int cloth = 0;
+    for (int br = 0; br < nb; ++br)
+      if (!hub[br]) ++count[level[br]], ++cloth;
+    int mid = 0;
+    for (int below = 0; mid < levels; ++mid) {
+      below += count[mid];
+      if (2 * below >= cloth) break;
+    }
+    std::array<std::vector<int>, 3> rows;
+    for (int br = 0; br < nb; ++br)
+      if (!hub[br]) rows[level[br] < mid ? 0 : level[br] > mid ? 1 : 2].push_back(br);
+    return rows;
+  }
+
+  // The cluster's part of the backward sweep: t_C = D_C^-1 p_C (it is last in the order), and
+  // its share A_jC t_C in the rows j it reaches; returns p_C . t_C. t_C is left in ct_, and 0
+  // in t for the rows' sweeps.
+  template <class T>
+  double backward_cluster(const Bsr<T>& M, const double* p, double* t) {
+    if (cluster_.empty()) return 0.0;
+    double pt = 0.0;
+    const int m = 3 * static_cast<int>(cluster_.size());
+    gather_cluster(p, ct_.data());
+    cholesky_solve(dense_.data(), m, ct_.data());
+    for (size_t a = 0; a < cluster_.size(); ++a)
+      for (int c = 0; c < 3; ++c) pt += ct_[3 * a + c] * p[3 * cluster_[a] + c];
+    cluster_to_touched(M, ct_.data());
+    for (int c : cluster_) t[3 * c] = t[3 * c + 1] = t[3 * c + 2] = 0.0;
+    return pt;
+  }
+
+  // t = (E + L^T)^-1 p on the rows at order_ [begin, end) outside the cluster, last to first
+  // (the rows after them done); returns their p . t in lanes.
+  template <class T>
+  V4 backward_rows(const Bsr<T>& M, const double* p, double* t, int begin, int end) const {
+    constexpr int K = Bsr<T>::kBlock;
     const T* val = M.val.data();
     const int* xoff = M.xoff.data();
     const double* dinv = M.dinv.data();
     V4 dot{};
-    for (auto it = order_.rbegin(); it != order_.rend(); ++it) {
-      const int br = *it, kind = kind_[br];
+    for (int i = end - 1; i >= begin; --i) {
+      const int br = order_[i], kind = kind_[br];
       if (kind == kCluster) continue;
       const V4 pi = load4(p + 3 * br);
       V4 s = pi;
@@ -530,26 +721,21 @@ class PcgSolver final : public LinearSolver {
       store3(t + 3 * br, ti);
       dot += pi * ti;
     }
-    return pt + sum3(dot);
+    return dot;
   }
 
-  // After backward_sweep: u = (E + L)^-1 (p + (D - 2E) t), A t = L t + p + (D - E) t, and
-  // with kFresh the residual r = E r' + L r' from the transformed one (z' = E r' given);
-  // returns p . u. t gets the cluster's values back.
+  // After the backward sweep, on the rows at order_ [begin, end) outside the cluster (the rows
+  // before them done): u = (E + L)^-1 (p + (D - 2E) t), A t = L t + p + (D - E) t, and with
+  // kFresh the residual r = E r' + L r' from the transformed one (z' = E r' given); returns
+  // their p . u in lanes.
   template <bool kFresh, class T>
-  double forward_sweep(const Bsr<T>& M, const double* p, double* t, double* u, double* at,
-                       double* rb, const double* zb, double* r) {
+  V4 forward_rows(const Bsr<T>& M, const double* p, const double* t, double* u, double* at,
+                  const double* rb, const double* zb, double* r, int begin, int end) const {
     constexpr int K = Bsr<T>::kBlock;
     const V4 c_dt_u = splat(2.0 / omega_ - 1.0), c_dt_a = splat(1.0 - 1.0 / omega_);
-    for (int c : cluster_) u[3 * c] = u[3 * c + 1] = u[3 * c + 2] = 0.0;
-    // The cluster is last in the order: its columns are no row's lower part, so r'_C is out of
-    // the rows' sums (put back below) as t_C and u_C are.
-    if constexpr (kFresh) {
-      gather_cluster(rb, crb_.data());
-      for (int c : cluster_) rb[3 * c] = rb[3 * c + 1] = rb[3 * c + 2] = 0.0;
-    }
     V4 dot{};
-    for (int br : order_) {
+    for (int i = begin; i < end; ++i) {
+      const int br = order_[i];
       if (kind_[br] == kCluster) continue;
       const V4 pi = load4(p + 3 * br);
       const V4 dt = block_times(M.val.data() + K * M.dblk[br], t + 3 * br);
@@ -569,32 +755,39 @@ class PcgSolver final : public LinearSolver {
       store3(u + 3 * br, ui);
       dot += pi * ui;
     }
-    double pu = sum3(dot);
-    if (!cluster_.empty()) {
-      // The cluster's block is not relaxed (omega 1: over-relaxing the contact springs cost
-      // iterations), so t_C = D_C^-1 p_C, p_C - D_C t_C = 0: u_C = D_C^-1 (0 - A_CN u_N), A t_C =
-      // A_CN t_N + p_C, r_C = D_C r'_C + A_CN r'_N.
-      const int m = 3 * static_cast<int>(cluster_.size());
-      std::fill(cz_.begin(), cz_.begin() + m, 0.0);
-      std::fill(cw_.begin(), cw_.begin() + m, 0.0);
-      gather_cluster(zb, ctmp_.data());
-      for_cluster_blocks(M, [&](int j, const T* B, int a) {
-        sub_block(B, u + 3 * j, cz_.data() + 3 * a);
-        add_block(B, t + 3 * j, cw_.data() + 3 * a);
-        add_block(B, rb + 3 * j, ctmp_.data() + 3 * a);
-      });
-      cholesky_solve(dense_.data(), m, cz_.data());
-      if constexpr (kFresh) scatter_cluster(crb_.data(), rb);
-      for (size_t a = 0; a < cluster_.size(); ++a)
-        for (int c = 0; c < 3; ++c) {
-          const int i = 3 * cluster_[a] + c, l = 3 * static_cast<int>(a) + c;
-          u[i] = cz_[l];
-          at[i] = cw_[l] + p[i];
-          if constexpr (kFresh) r[i] = ctmp_[l];
-          t[i] = ct_[l];
-          pu += p[i] * u[i];
-        }
-    }
+    return dot;
+  }
+
+  // The cluster's part of the forward sweep, after the rows': u_C, A t_C and with kFresh r_C;
+  // t_C back in t (and r'_C in rb); returns p_C . u_C.
+  template <bool kFresh, class T>
+  double forward_cluster(const Bsr<T>& M, const double* p, double* t, double* u, double* at, double* rb,
+                         const double* zb, double* r) {
+    if (cluster_.empty()) return 0.0;
+    // The cluster's block is not relaxed (omega 1: over-relaxing the contact springs cost
+    // iterations), so t_C = D_C^-1 p_C, p_C - D_C t_C = 0: u_C = D_C^-1 (0 - A_CN u_N), A t_C =
+    // A_CN t_N + p_C, r_C = D_C r'_C + A_CN r'_N.
+    const int m = 3 * static_cast<int>(cluster_.size());
+    std::fill(cz_.begin(), cz_.begin() + m, 0.0);
+    std::fill(cw_.begin(), cw_.begin() + m, 0.0);
+    gather_cluster(zb, ctmp_.data());
+    for_cluster_blocks(M, [&](int j, const T* B, int a) {
+      sub_block(B, u + 3 * j, cz_.data() + 3 * a);
+      add_block(B, t + 3 * j, cw_.data() + 3 * a);
+      add_block(B, rb + 3 * j, ctmp_.data() + 3 * a);
+    });
+    cholesky_solve(dense_.data(), m, cz_.data());
+    if constexpr (kFresh) scatter_cluster(crb_.data(), rb);
+    double pu = 0.0;
+    for (size_t a = 0; a < cluster_.size(); ++a)
+      for (int c = 0; c < 3; ++c) {
+        const int i = 3 * cluster_[a] + c, l = 3 * static_cast<int>(a) + c;
+        u[i] = cz_[l];
+        at[i] = cw_[l] + p[i];
+        if constexpr (kFresh) r[i] = ctmp_[l];
+        t[i] = ct_[l];
+        pu += p[i] * u[i];
+      }
     return pu;
   }
 
@@ -758,7 +951,7 @@ class PcgSolver final : public LinearSolver {
   }
 
   static constexpr int kMaxCluster = 24;
-  static constexpr int kStreams = 2;
+  static constexpr int kLoadChunks = 8;
   // SSOR: every kRefresh-th iteration the residual is taken afresh from r' (bounding the
   // drift of r -= alpha A t); at a tolerance below kCheckBelow, a converged one is checked.
   static constexpr int kRefresh = 8;
@@ -781,6 +974,9 @@ class PcgSolver final : public LinearSolver {
   int n_ = 0;
   std::vector<double> r_, z_, p_, q_, x0_, inv_;
   std::vector<int> order_, rank_;  // the sweeps' row order, and each row's place in it
+  std::array<int, 4> seg_{};       // order_'s parts: [seg_0, seg_1), [seg_1, seg_2); separator [seg_2, seg_3)
+  std::array<double, 2> part_sum_{}, part_rz_{};  // the two threads' partial sums, added in order
+  WorkerPool* pool_ = nullptr;
   Bsr<double> md_;
   Bsr<float> mf_;
 };

@@ -1,5 +1,9 @@
 #include "cloth/worker_pool.hpp"
 
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#endif
+
 namespace hapticloth::cloth {
 
 WorkerPool::WorkerPool() : thread_([this] { helper_loop(); }) {}
@@ -11,40 +15,74 @@ WorkerPool::~WorkerPool() {
   thread_.join();
 }
 
-// Claims indices until none is left; returns how many this thread did.
-int WorkerPool::work() {
-  int did = 0;
+// The next unclaimed index, from the front (the caller) or the back (the helper); -1 if none is
+// left. The caller and the helper so take the same indices run after run when both are there
+// (the same rows, whose data then stays in their own core's cache: a PCG sweep's parts ran no
+// faster on two threads while the indices went to whichever thread came first).
+int WorkerPool::claim(bool from_back) {
+  std::uint64_t cur = range_.load(std::memory_order_acquire);
   for (;;) {
-    const int i = next_.fetch_add(1, std::memory_order_acq_rel);
-    if (i >= n_.load(std::memory_order_relaxed)) return did;
+    const auto front = static_cast<std::uint32_t>(cur), back = static_cast<std::uint32_t>(cur >> 32);
+    if (front >= back) return -1;
+    const std::uint64_t next = from_back ? (std::uint64_t(back - 1) << 32 | front)
+                                         : (std::uint64_t(back) << 32 | (front + 1));
+    if (range_.compare_exchange_weak(cur, next, std::memory_order_acq_rel, std::memory_order_acquire))
+      return static_cast<int>(from_back ? back - 1 : front);
+  }
+}
+
+// Claims indices until none is left; returns how many this thread did.
+int WorkerPool::work(bool from_back) {
+  int did = 0;
+  for (int i; (i = claim(from_back)) >= 0; ++did) {
     fn_(ctx_, i);
     done_.fetch_add(1, std::memory_order_acq_rel);
-    ++did;
   }
+  return did;
 }
 
 void WorkerPool::run_raw(int n, void (*fn)(void*, int), void* ctx) {
   if (n <= 0) return;
   fn_ = fn;
   ctx_ = ctx;
-  n_.store(n, std::memory_order_relaxed);
   done_.store(0, std::memory_order_relaxed);
-  next_.store(0, std::memory_order_release);  // publishes the run: a claim reads it first
+  range_.store(std::uint64_t(n) << 32, std::memory_order_release);  // publishes the run: a claim reads it first
   generation_.fetch_add(1, std::memory_order_release);
   generation_.notify_one();
-  work();
-  // The helper may still be inside its last index: wait for it (a few tens of us at most).
-  while (done_.load(std::memory_order_acquire) < n) std::this_thread::yield();
-  next_.store(1 << 30, std::memory_order_release);  // nothing to claim until the next run
+  work(false);
+  // The helper may still be inside its last index: wait for it (a few tens of us at most),
+  // giving the core away now and then in case the helper waits for it.
+  for (int spins = 1; done_.load(std::memory_order_acquire) < n; ++spins)
+    if (spins % 1024 == 0)
+      std::this_thread::yield();
+    else
+      pause();
+}
+
+void WorkerPool::pause() {
+#if defined(__x86_64__) || defined(__i386__)
+  _mm_pause();
+#else
+  std::this_thread::yield();
+#endif
 }
 
 void WorkerPool::helper_loop() {
   std::uint32_t seen = 0;
   for (;;) {
+    // In a burst, spin until the next run (or the burst's end), giving the core away now and
+    // then (should the caller share it); then sleep as usual.
+    for (int spins = 1; bursts_.load(std::memory_order_acquire) > 0 &&
+                        generation_.load(std::memory_order_acquire) == seen;
+         ++spins)
+      if (spins % 1024 == 0)
+        std::this_thread::yield();
+      else
+        pause();
     generation_.wait(seen, std::memory_order_acquire);
     seen = generation_.load(std::memory_order_acquire);
     if (stop_.load(std::memory_order_acquire)) return;
-    helper_done_.fetch_add(work(), std::memory_order_relaxed);
+    helper_done_.fetch_add(work(true), std::memory_order_relaxed);
   }
 }
 

@@ -3,9 +3,11 @@
 
 #include <algorithm>
 #include <memory>
+#include <numeric>
 #include <random>
 
 #include "cloth/integrator.hpp"
+#include "cloth/worker_pool.hpp"
 #include "support/fixtures.hpp"
 
 using namespace hapticloth;
@@ -58,6 +60,24 @@ struct PinchedSheet {
   }
   cloth::SymCsr system_matrix() { return integ->system_matrix(s, cfg.dt, cloth::JacobianMode::Spd); }
 };
+
+// `per_tri` stiff point springs (3 kN/m) at the centre of each triangle, to the two proxies in turn.
+std::vector<cloth::PointSpring> centre_springs(std::initializer_list<int> tris, int per_tri) {
+  std::vector<cloth::PointSpring> out;
+  for (int tri : tris)
+    for (int q = 0; q < per_tri; ++q) {
+      cloth::PointSpring sp;
+      sp.tri = tri;
+      sp.b[0] = sp.b[1] = sp.b[2] = 1.0 / 3.0;
+      sp.proxy = q % 2;
+      sp.K = 3e3 * cloth::Mat3::Identity();
+      out.push_back(sp);
+    }
+  return out;
+}
+void press_triangles(PinchedSheet& p, std::initializer_list<int> tris) {
+  for (const auto& sp : centre_springs(tris, 6)) p.integ->point_springs().push_back(sp);
+}
 
 // The system of eq. 9 (Spd) of a step h from a random state of the sheet, a random right-hand
 // side, and CHOLMOD's solution of it: what PCG is checked against.
@@ -272,15 +292,7 @@ TEST(Solver, PcgWithContactHubsMatchesCholmod) {
 TEST(Solver, SsorOverRelaxedMatchesCholmod) {
   std::mt19937 rng(10);
   PinchedSheet p(rng);
-  for (int tri : {100, 101, 125})
-    for (int q = 0; q < 6; ++q) {
-      cloth::PointSpring sp;
-      sp.tri = tri;
-      sp.b[0] = sp.b[1] = sp.b[2] = 1.0 / 3.0;
-      sp.proxy = q % 2;
-      sp.K = 3e3 * cloth::Mat3::Identity();
-      p.integ->point_springs().push_back(sp);
-    }
+  press_triangles(p, {100, 101, 125});
   const auto [A, b, x_chol] = cholmod_reference(p.system_matrix(), rng);
   for (double omega : {1.0, 1.3, 1.7}) {
     for (bool float_matrix : {false, true}) {
@@ -315,21 +327,7 @@ TEST(Solver, SsorOverRelaxedMatchesCholmod) {
 TEST(Solver, PcgSolveChangedReloadsTheChangedRows) {
   std::mt19937 rng(9);
   PinchedSheet p(rng);
-  const cloth::Mat3 K = 3e3 * cloth::Mat3::Identity();
-  auto springs_on = [&](std::initializer_list<int> tris) {
-    std::vector<cloth::PointSpring> out;
-    for (int tri : tris)
-      for (int q = 0; q < 4; ++q) {
-        cloth::PointSpring sp;
-        sp.tri = tri;
-        sp.b[0] = sp.b[1] = sp.b[2] = 1.0 / 3.0;
-        sp.proxy = q % 2;
-        sp.K = K;
-        out.push_back(sp);
-      }
-    return out;
-  };
-  const auto before = springs_on({100, 101}), after = springs_on({101, 140, 141});
+  const auto before = centre_springs({100, 101}, 4), after = centre_springs({101, 140, 141}, 4);
   p.integ->point_springs() = before;
   const cloth::SymCsr A0 = p.system_matrix();
   p.integ->point_springs() = after;
@@ -427,4 +425,90 @@ TEST(Solver, PcgWithFloatMatrixMeetsToleranceOnTheDoubleMatrix) {
     EXPECT_LE(std::sqrt(err / nrm), 1e-3);
     EXPECT_GT(std::sqrt(err / nrm), 0.0);
   }
+}
+
+namespace {
+
+// P A P^T for the block renumbering `to` (old block row -> new).
+cloth::SymCsr renumber_blocks(const cloth::SymCsr& A, const std::vector<int>& to) {
+  const int n = A.n;
+  std::vector<std::vector<std::pair<int, double>>> rows(n);
+  for (int r = 0; r < n; ++r)
+    for (int k = A.rowptr[r]; k < A.rowptr[r + 1]; ++k)
+      rows[3 * to[r / 3] + r % 3].push_back({3 * to[A.col[k] / 3] + A.col[k] % 3, A.val[k]});
+  cloth::SymCsr P;
+  P.n = n;
+  P.block3 = A.block3;
+  P.rowptr.push_back(0);
+  for (auto& row : rows) {
+    std::sort(row.begin(), row.end());
+    for (const auto& [c, v] : row) {
+      P.col.push_back(c);
+      P.val.push_back(v);
+    }
+    P.rowptr.push_back(static_cast<int>(P.col.size()));
+  }
+  return P;
+}
+
+// diag(A, B): two pieces of cloth in one system.
+cloth::SymCsr two_pieces(const cloth::SymCsr& A, const cloth::SymCsr& B) {
+  cloth::SymCsr D;
+  D.n = A.n + B.n;
+  D.block3 = A.block3 && B.block3;
+  D.rowptr.push_back(0);
+  for (int piece = 0; piece < 2; ++piece) {
+    const cloth::SymCsr* M = piece == 0 ? &A : &B;
+    const int shift = piece == 0 ? 0 : A.n;
+    for (int r = 0; r < M->n; ++r) {
+      for (int k = M->rowptr[r]; k < M->rowptr[r + 1]; ++k) {
+        D.col.push_back(M->col[k] + shift);
+        D.val.push_back(M->val[k]);
+      }
+      D.rowptr.push_back(static_cast<int>(D.col.size()));
+    }
+  }
+  return D;
+}
+
+}  // namespace
+
+// SSOR's sweeps share each iteration with a second thread (the integrator's pool): two parts of
+// the cloth that share no block at once, their separator alone. Whether or not the pool is
+// there, and whichever thread takes a part, the solve is the same to the last bit, and
+// CHOLMOD's. The sheet is split as numbered (a grid's halves), renumbered at random (split by
+// breadth-first levels), and doubled (two pieces of cloth, each with its fingertips).
+TEST(Solver, SsorOnTwoThreadsIsTheSolveOnOne) {
+  std::mt19937 rng(12);
+  PinchedSheet p(rng);
+  press_triangles(p, {100, 101, 125});
+  const cloth::SymCsr A = p.system_matrix();
+  const int nb = A.n / 3;
+  std::vector<int> shuffled(nb);
+  std::iota(shuffled.begin(), shuffled.end(), 0);
+  std::shuffle(shuffled.begin(), shuffled.end() - 2, rng);  // the proxies stay last
+  const std::pair<const char*, cloth::SymCsr> systems[] = {
+      {"grid order", A}, {"shuffled", renumber_blocks(A, shuffled)}, {"two pieces", two_pieces(A, A)}};
+  cloth::WorkerPool pool;
+  for (const auto& [name, M] : systems) {
+    for (bool float_matrix : {false, true}) {
+      SCOPED_TRACE(testing::Message() << name << ", float " << float_matrix);
+      const Reference ref = cholmod_reference(M, rng);
+      const cloth::PcgOptions po{.tolerance = 1e-10, .single_precision_matrix = float_matrix};
+      const PcgRun one = pcg_solve(M, ref.b, po);
+      ASSERT_EQ(one.st, cloth::SolveStatus::Ok);
+      EXPECT_LE(max_abs_diff(one.x, ref.x), (float_matrix ? 1e-5 : 1e-7) * max_abs(ref.x));
+      for (int round = 0; round < 3; ++round) {
+        auto two = cloth::make_pcg_solver(po);
+        two->use_pool(&pool);
+        two->analyze(M);
+        std::vector<double> x(M.n, 0.0);
+        const cloth::WorkerPool::Burst burst(round == 1 ? &pool : nullptr);  // spinning or woken
+        ASSERT_EQ(two->solve(M, ref.b.data(), x.data()), cloth::SolveStatus::Ok);
+        EXPECT_EQ(two->iterations(), one.pcg->iterations()) << "round " << round;
+        EXPECT_EQ(x, one.x) << "round " << round;
+      }
+    }
+  }
+  EXPECT_GT(pool.helper_share(), 0u) << "the helper never took a part";
 }

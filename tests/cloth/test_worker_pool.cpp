@@ -1,8 +1,12 @@
-// The assembly's helper thread (server/cloth/worker_pool): every index once per run, on either
-// thread, run after run, and nothing allocated by a run.
+// The assembly's and the PCG's helper thread (server/cloth/worker_pool): every index once per
+// run, on either thread, run after run; the caller's indices from the front and the helper's
+// from the back; spinning in a burst and asleep after it; nothing allocated by a run.
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
+#include <ctime>
+#include <thread>
 #include <vector>
 
 #include "cloth/worker_pool.hpp"
@@ -13,7 +17,8 @@ using namespace hapticloth;
 TEST(WorkerPool, RunsEveryIndexOncePerRun) {
   cloth::WorkerPool pool;
   std::vector<std::atomic<int>> hits(8);
-  for (int run = 0; run < 2000; ++run) {
+  for (int run = 0; run < 4000; ++run) {
+    const cloth::WorkerPool::Burst burst(run >= 2000 ? &pool : nullptr);  // woken, then spinning
     const int n = 1 + run % 8;
     for (auto& h : hits) h.store(0);
     auto fn = [&](int i) { hits[i].fetch_add(1); };
@@ -42,4 +47,76 @@ TEST(WorkerPool, ARunAllocatesNothing) {
   test::AllocationGuard guard;
   for (int run = 0; run < 100; ++run) pool.run(4, fn);
   EXPECT_EQ(guard.count(), 0u);
+}
+
+namespace {
+// The process's CPU time (all threads), s.
+double cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+void spin_for(std::chrono::microseconds d) {
+  const auto end = std::chrono::steady_clock::now() + d;
+  while (std::chrono::steady_clock::now() < end) {
+  }
+}
+}  // namespace
+
+// The caller claims from the front and the helper from the back, so with both there each keeps
+// its indices run after run (a PCG part's rows stay in one core's cache): in every run the
+// caller's first index, if it took any, is 0, and the helper's is the last. Whoever takes index 0
+// holds it until index 2 has started, so the helper takes part in every run.
+TEST(WorkerPool, TheCallerTakesTheFrontAndTheHelperTheBack) {
+  cloth::WorkerPool pool;
+  const auto caller = std::this_thread::get_id();
+  std::thread::id who[3];
+  std::atomic<int> claims{0};
+  std::atomic<bool> back_started{false};
+  bool waited_out = false;
+  int order[3];
+  auto fn = [&](int i) {
+    const int k = claims.fetch_add(1);
+    who[k] = std::this_thread::get_id();
+    order[k] = i;
+    if (i == 2) back_started.store(true);
+    if (i != 0) return;
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+    while (!back_started.load() && !waited_out) waited_out = std::chrono::steady_clock::now() > give_up;
+  };
+  for (int run = 0; run < 20; ++run) {
+    back_started.store(false);
+    claims.store(0);
+    pool.run(3, fn);
+    ASSERT_FALSE(waited_out) << "run " << run << ": index 2 never started while 0 was held";
+    bool caller_first = true, helper_first = true;
+    for (int k = 0; k < 3; ++k) {
+      bool& first = who[k] == caller ? caller_first : helper_first;
+      if (first) EXPECT_EQ(order[k], who[k] == caller ? 0 : 2) << "run " << run << ", claim " << k;
+      first = false;
+    }
+    EXPECT_FALSE(helper_first) << "run " << run << ": the helper took no index";
+  }
+}
+
+// In a burst the helper spins between runs (its core busy while the caller is idle); once the
+// burst ends it sleeps again.
+TEST(WorkerPool, TheHelperSpinsInABurstAndSleepsAfterIt) {
+  cloth::WorkerPool pool;
+  auto fn = [](int) {};
+  double busy = 0.0;
+  {
+    const cloth::WorkerPool::Burst burst(&pool);
+    pool.run(2, fn);
+    const double c0 = cpu_seconds();
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    busy = cpu_seconds() - c0;
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(5));  // the helper sees the burst end
+  const double c1 = cpu_seconds();
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  const double idle = cpu_seconds() - c1;
+  EXPECT_GT(busy, 0.01) << "the helper slept in a burst";  // a fair share of a core, even under load
+  EXPECT_LT(idle, 0.01) << "the helper still spins after the burst";
+  pool.run(2, fn);  // and wakes for the next run
 }
