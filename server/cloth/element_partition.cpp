@@ -1,6 +1,7 @@
 #include "cloth/element_partition.hpp"
 
 #include <algorithm>
+#include <numeric>
 #include <stdexcept>
 
 namespace hapticloth::cloth {
@@ -29,6 +30,13 @@ void bisect(const std::vector<Vec3>& x, std::vector<int>& vertices, int lo, int 
   bisect(x, vertices, mid, hi, first + count / 2, count / 2, label);
 }
 
+// The elements whose corners have different labels.
+int crossing(const std::vector<ElementRest>& elements, const std::vector<int>& label) {
+  int n = 0;
+  for (const auto& e : elements) n += label[e.v[0]] != label[e.v[1]] || label[e.v[0]] != label[e.v[2]];
+  return n;
+}
+
 }  // namespace
 
 ElementPartition partition_elements(const std::vector<ElementRest>& elements,
@@ -37,8 +45,23 @@ ElementPartition partition_elements(const std::vector<ElementRest>& elements,
     throw std::invalid_argument("partition_elements: parts must be a power of two");
   const int nv = static_cast<int>(rest_positions.size());
   std::vector<int> vertices(nv), label(nv, 0);
-  for (int i = 0; i < nv; ++i) vertices[i] = i;
-  bisect(rest_positions, vertices, 0, nv, 0, parts, label);
+  // The first cut halves the vertices by number, the rest by position (bisect). The caller's
+  // half (parts [0, parts/2), which the assembly's caller claims first) is then the mesh's
+  // first half, as the PCG's first part is (solver_pcg: sweep_order), so the rows a thread
+  // assembles are the rows it sweeps and stay in its core's cache. A mesh numbered so that the
+  // cut by number crosses far more elements than one by position is cut by position throughout.
+  std::vector<int> by_number(nv, 0);
+  for (int i = nv / 2; i < nv; ++i) by_number[i] = 1;
+  std::iota(vertices.begin(), vertices.end(), 0);
+  bisect(rest_positions, vertices, 0, nv, 0, 2, label);  // the first cut by position, to compare
+  const bool number_first = parts > 1 && crossing(elements, by_number) <= 2 * crossing(elements, label);
+  std::iota(vertices.begin(), vertices.end(), 0);
+  if (number_first) {
+    bisect(rest_positions, vertices, 0, nv / 2, 0, parts / 2, label);
+    bisect(rest_positions, vertices, nv / 2, nv, parts / 2, parts / 2, label);
+  } else {
+    bisect(rest_positions, vertices, 0, nv, 0, parts, label);
+  }
   ElementPartition p;
   p.parts.resize(parts);
   for (int t = 0; t < static_cast<int>(elements.size()); ++t) {

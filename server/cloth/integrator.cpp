@@ -44,10 +44,18 @@ double Integrator::assemble_elements(const ClothState& s, double h) {
     }
     return energy;
   };
-  if (!pool_) return pass(groups_);
+  if (!pool_) {
+    std::memset(A_.val.data(), 0, sizeof(double) * A_.val.size());
+    return pass(groups_);
+  }
   // Two threads: the parts at once (disjoint rows), then the separators (groups_); the energy
-  // summed in the same order whichever thread took a part.
-  auto part = [&](int p) { part_energy_[p] = pass(part_groups_[p]); };
+  // summed in the same order whichever thread took a part. Each part's rows are cleared by the
+  // thread that assembles them (zero_spans_), so they are in its core's cache, not the caller's.
+  clear_rows(zero_spans_.back());
+  auto part = [&](int p) {
+    clear_rows(zero_spans_[p]);
+    part_energy_[p] = pass(part_groups_[p]);
+  };
   pool_->run(static_cast<int>(part_groups_.size()), part);
   double e_el = 0.0;
   for (double e : part_energy_) e_el += e;
@@ -121,6 +129,7 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
     for (const auto& p : partition.parts) part_groups_.push_back(group_elements(model_.elements, p));
     groups_ = group_elements(model_.elements, partition.separators);
     part_energy_.assign(part_groups_.size(), 0.0);
+    plan_clearing(partition);
     pool_ = std::make_unique<WorkerPool>();
     solver_->use_pool(pool_.get());
   } else {
@@ -174,9 +183,34 @@ bool Integrator::state_finite(const ClothState& s) const {
   return true;
 }
 
+void Integrator::clear_rows(const std::vector<std::pair<int, int>>& spans) {
+  for (const auto& [begin, end] : spans) std::memset(A_.val.data() + begin, 0, sizeof(double) * (end - begin));
+}
+
+// zero_spans_: for each assembly part, the ranges of A_'s values in the rows its elements reach
+// (no other part's reach them), and last the rest (the rows only separators reach, the proxies').
+void Integrator::plan_clearing(const ElementPartition& partition) {
+  const SymCsr& A = sys_.csr;
+  const int nb = A.n / 3;
+  std::vector<int> owner(nb, -1);
+  const int parts = static_cast<int>(partition.parts.size());
+  for (int p = 0; p < parts; ++p)
+    for (int t : partition.parts[p])
+      for (int v : model_.elements[t].v)
+        if (model_.free_index[v] >= 0) owner[model_.free_index[v]] = p;
+  zero_spans_.assign(parts + 1, {});
+  for (int br = 0; br < nb; ++br) {
+    auto& spans = zero_spans_[owner[br] < 0 ? parts : owner[br]];
+    const int begin = A.rowptr[3 * br], end = A.rowptr[3 * br + 3];
+    if (!spans.empty() && spans.back().second == begin)
+      spans.back().second = end;
+    else
+      spans.push_back({begin, end});
+  }
+}
+
 bool Integrator::assemble(const ClothState& s, double h, JacobianMode mode) {
   const double ah = alpha_ * h;
-  std::memset(A_.val.data(), 0, sizeof(double) * A_.val.size());
   rhs_.setZero();
   const bool spd = mode == JacobianMode::Spd;
   const double e_el = viscous_ ? (spd ? assemble_elements<true, true>(s, h)

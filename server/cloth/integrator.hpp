@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -191,6 +192,8 @@ class Integrator {
   template <bool kViscous, bool kSpd>
   double assemble_elements(const ClothState& s, double h);  // returns the elastic energy
   double scatter_terms(const ElementGroup& g, const ElementTerms& terms);
+  void plan_clearing(const ElementPartition& partition);
+  void clear_rows(const std::vector<std::pair<int, int>>& spans);
   bool state_finite(const ClothState& s) const;
 
   const ClothModel& model_;
@@ -236,6 +239,7 @@ class Integrator {
   std::vector<ElementGroup> groups_;
   std::vector<std::vector<ElementGroup>> part_groups_;
   std::vector<double> part_energy_;
+  std::vector<std::vector<std::pair<int, int>>> zero_spans_;  // plan_clearing
   std::unique_ptr<WorkerPool> pool_;
 };
 
