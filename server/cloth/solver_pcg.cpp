@@ -190,6 +190,45 @@ class PcgSolver final : public LinearSolver {
     for (int i = 0; i < n; ++i) f(i);
   }
 
+  // A run of the sweeps' order, order_ [begin, end).
+  struct Rows {
+    int begin = 0, end = 0;
+    int size() const { return end - begin; }
+  };
+  Rows part(int q) const { return {seg_[q], seg_[q + 1]}; }
+  Rows separator() const { return {seg_[2], seg_[3]}; }
+
+  // f(one, two, sums) for the two parts, which share no block, with part q's sums into
+  // part_sum_[q]: on the pool, a thread each (f(part q, none)); without one, on this thread in
+  // turn (f(part 0, part 1)), so that each sweep advances two independent chains of rows at
+  // once (a row waits on the one before it in its own part only). The sums are the same either way.
+  template <class F>
+  void both_parts(F& f) {
+    if (!pool_) {
+      double sums[2];
+      f(part(0), part(1), sums);
+      part_sum_ = {sums[0], sums[1]};
+      return;
+    }
+    auto one = [&](int q) {
+      double sums[2];
+      f(part(q), Rows{}, sums);
+      part_sum_[q] = sums[0];
+    };
+    pool_->run(2, one);
+  }
+
+  // f(row, 0) for the rows of `one` and f(row, 1) for those of `two`, taking one of each in
+  // turn, first to last (kReverse: last to first).
+  template <bool kReverse, class F>
+  __attribute__((always_inline)) void in_turn(Rows one, Rows two, F&& f) const {
+    const int n = std::max(one.size(), two.size());
+    for (int k = 0; k < n; ++k) {
+      if (k < one.size()) f(order_[kReverse ? one.end - 1 - k : one.begin + k], 0);
+      if (k < two.size()) f(order_[kReverse ? two.end - 1 - k : two.begin + k], 1);
+    }
+  }
+
   // Block-Jacobi's preconditioner: the inverse of block row br's 3x3 diagonal block (at column
   // position d of A's row, from the double values). False if it is not positive definite.
   // (SSOR's are the matrix copy's own: Bsr::dinv.)
@@ -371,7 +410,7 @@ class PcgSolver final : public LinearSolver {
     double* u = u_.data();
     double* at = at_.data();
     if (turn) {
-      next_direction(beta, pb, zb, seg_[2], seg_[3]);
+      next_direction(beta, pb, zb, separator());
       for (int c : cluster_) direction_row(beta, pb, zb, c);
     }
     const double pt_c = backward_cluster(M, pb, t);
@@ -382,22 +421,31 @@ class PcgSolver final : public LinearSolver {
       gather_cluster(rb, crb_.data());
       for (int c : cluster_) rb[3 * c] = rb[3 * c + 1] = rb[3 * c + 2] = 0.0;
     }
-    const double pt_s = sum3(backward_rows(M, pb, t, seg_[2], seg_[3]));
-    auto part = [&](int q) {
-      if (turn) next_direction(beta, pb, zb, seg_[q], seg_[q + 1]);
-      const V4 pt = backward_rows(M, pb, t, seg_[q], seg_[q + 1]);
-      const V4 pu = forward_rows<kFresh>(M, pb, t, u, at, rb, zb, r, seg_[q], seg_[q + 1]);
-      part_sum_[q] = sum3(pt) + sum3(pu);
+    V4 ps[2] = {};
+    backward_rows(M, pb, t, separator(), Rows{}, ps);
+    auto sweep = [&](Rows a, Rows b, double* sums) {
+      if (turn) {
+        next_direction(beta, pb, zb, a);
+        next_direction(beta, pb, zb, b);
+      }
+      V4 pt[2] = {}, pu[2] = {};
+      backward_rows(M, pb, t, a, b, pt);
+      forward_rows<kFresh>(M, pb, t, u, at, rb, zb, r, a, b, pu);
+      sums[0] = sum3(pt[0]) + sum3(pu[0]);
+      sums[1] = sum3(pt[1]) + sum3(pu[1]);
     };
-    in_parallel(2, part);
-    const double pu_s = sum3(forward_rows<kFresh>(M, pb, t, u, at, rb, zb, r, seg_[2], seg_[3]));
+    both_parts(sweep);
+    const double pt_s = sum3(ps[0]);
+    ps[0] = V4{};
+    forward_rows<kFresh>(M, pb, t, u, at, rb, zb, r, separator(), Rows{}, ps);
+    const double pu_s = sum3(ps[0]);
     const double pu_c = forward_cluster<kFresh>(M, pb, t, u, at, rb, zb, r);
     return pt_c + pt_s + part_sum_[0] + part_sum_[1] + pu_s + pu_c;
   }
 
-  // p' = z' + beta p' on the rows at order_ [begin, end) outside the cluster, and on one row.
-  void next_direction(double beta, double* pb, const double* zb, int begin, int end) const {
-    for (int i = begin; i < end; ++i)
+  // p' = z' + beta p' on `rows` outside the cluster, and on one row.
+  void next_direction(double beta, double* pb, const double* zb, Rows rows) const {
+    for (int i = rows.begin; i < rows.end; ++i)
       if (kind_[order_[i]] != kCluster) direction_row(beta, pb, zb, order_[i]);
   }
   static void direction_row(double beta, double* pb, const double* zb, int br) {
@@ -418,9 +466,16 @@ class PcgSolver final : public LinearSolver {
       y[3 * c] = y[3 * c + 1] = y[3 * c + 2] = 0.0;
     }
     cluster_to_touched(M, cx_.data());
-    auto part = [&](int q) { part_sum_[q] = sum3(residual_rows(M, b, x0, r, y, seg_[q], seg_[q + 1])); };
-    in_parallel(2, part);
-    double rr_sum = part_sum_[0] + part_sum_[1] + sum3(residual_rows(M, b, x0, r, y, seg_[2], seg_[3]));
+    auto lower = [&](Rows one, Rows two, double* sums) {
+      V4 rr[2] = {};
+      residual_rows(M, b, x0, r, y, one, two, rr);
+      sums[0] = sum3(rr[0]);
+      sums[1] = sum3(rr[1]);
+    };
+    both_parts(lower);
+    V4 rr_s[2] = {};
+    residual_rows(M, b, x0, r, y, separator(), Rows{}, rr_s);
+    double rr_sum = part_sum_[0] + part_sum_[1] + sum3(rr_s[0]);
     if (cluster_.empty()) return rr_sum;
     // r_C = b_C - A_CN x_N - D_C x_C, y_C = D_C^-1 (r_C - A_CN y_N).
     const int m = 3 * static_cast<int>(cluster_.size());
@@ -442,18 +497,17 @@ class PcgSolver final : public LinearSolver {
     return rr_sum;
   }
 
-  // residual_and_lower_solve on the rows at order_ [begin, end) outside the cluster; returns
-  // their r . r in lanes.
+  // residual_and_lower_solve on the rows of `one` and `two` outside the cluster (in_turn);
+  // adds their r . r to rr[0] and rr[1].
   template <class T>
-  V4 residual_rows(const Bsr<T>& M, const double* b, const double* x0, double* r, double* y, int begin,
-                   int end) const {
+  void residual_rows(const Bsr<T>& M, const double* b, const double* x0, double* r, double* y, Rows one,
+                     Rows two, V4* rr) const {
     constexpr int K = Bsr<T>::kBlock;
     const T* val = M.val.data();
     const int* xoff = M.xoff.data();
-    V4 rr{};
-    for (int i = begin; i < end; ++i) {
-      const int br = order_[i], kind = kind_[br];
-      if (kind == kCluster) continue;
+    in_turn<false>(one, two, [&](int br, int which) __attribute__((always_inline)) {
+      const int kind = kind_[br];
+      if (kind == kCluster) return;
       V4 ax = kind == kTouched ? load4(w_.data() + 3 * br) : V4{};  // A x
       V4 s{};                                                       // -L y
       const int k0 = M.rowptr[br], kd = M.dblk[br], k1 = M.rowptr[br + 1];
@@ -466,10 +520,9 @@ class PcgSolver final : public LinearSolver {
       const V4 bi{b[3 * br], b[3 * br + 1], b[3 * br + 2], 0.0};
       const V4 ri = bi - ax;  // lane 3 is 0
       store3(r + 3 * br, ri);
-      rr += ri * ri;
+      rr[which] += ri * ri;
       store3(y + 3 * br, block_times(M.dinv.data() + 12 * br, ri + s));
-    }
-    return rr;
+    });
   }
 
   // w_j = A_jC v_C for every row j the cluster reaches.
@@ -499,48 +552,48 @@ class PcgSolver final : public LinearSolver {
     return s;
   }
 
-  // x += alpha t, r -= alpha A t, r' -= alpha (t + u) (= A' p'), then z' = E r': each part
-  // on the thread that swept it (its rows' data in that core's cache), then the separator and
-  // the cluster. Returns r . r, and r' . z' in rz.
+  // x += alpha t, r -= alpha A t, r' -= alpha (t + u) (= A' p'), then z' = E r': block rows
+  // [0, split_) and [split_, nb) at once, each on the thread whose part they hold (their data in
+  // its core's cache), in 4-lane runs of entries; the cluster's z' after. Returns r . r, and
+  // r' . z' in rz.
   template <class T>
   double update(const Bsr<T>& M, double alpha, double* x, double* r, double* rb, double* zb, double& rz) {
-    auto part = [&](int q) { part_sum_[q] = update_rows(M, alpha, x, r, rb, zb, seg_[q], seg_[q + 1], part_rz_[q]); };
-    in_parallel(2, part);
     const int nb = n_ / 3;
-    double rz_s = 0.0;
-    const double rr_s = update_rows(M, alpha, x, r, rb, zb, seg_[2], nb, rz_s);
-    rz = part_rz_[0] + part_rz_[1] + rz_s + multiply_cluster_d(rb, zb);
-    return part_sum_[0] + part_sum_[1] + rr_s;
+    auto half = [&](int q) {
+      const int lo = q == 0 ? 0 : split_, hi = q == 0 ? split_ : nb;
+      part_sum_[q] = update_range(alpha, x, r, rb, 3 * lo, 3 * hi);
+      part_rz_[q] = multiply_d(M, rb, zb, lo, hi);
+    };
+    in_parallel(2, half);
+    rz = part_rz_[0] + part_rz_[1] + multiply_cluster_d(rb, zb);
+    return part_sum_[0] + part_sum_[1];
   }
 
-  // update on the rows at order_ [begin, end), z' outside the cluster; returns their r . r and
-  // their r' . z' in rz.
-  template <class T>
-  double update_rows(const Bsr<T>& M, double alpha, double* x, double* r, double* rb, double* zb, int begin,
-                     int end, double& rz) const {
-    constexpr int K = Bsr<T>::kBlock;
+  // update's vector part on the entries [i0, i1) (i0 a multiple of 4), returning their r . r.
+  double update_range(double alpha, double* x, double* r, double* rb, int i0, int i1) const {
     const double* t = t_.data();
     const double* u = u_.data();
     const double* at = at_.data();
-    const V4 a = splat(alpha), scale = splat(1.0 / omega_);
-    V4 rr{}, dot{};
-    for (int i = begin; i < end; ++i) {
-      const int br = order_[i], o = 3 * br;
-      const V4 ti = load4(t + o);
-      const V4 xi = load4(x + o) + a * ti;
-      const V4 ri = load4(r + o) - a * load4(at + o);
-      const V4 bi = load4(rb + o) - a * (ti + load4(u + o));
-      store3(x + o, xi);
-      store3(r + o, ri);
-      store3(rb + o, bi);
+    const V4 a = splat(alpha);
+    V4 rr{};
+    int i = i0;
+    for (; i + 4 <= i1; i += 4) {
+      const V4 xi = load4(x + i) + a * load4(t + i);
+      const V4 ri = load4(r + i) - a * load4(at + i);
+      const V4 bi = load4(rb + i) - a * (load4(t + i) + load4(u + i));
+      std::memcpy(x + i, &xi, sizeof xi);
+      std::memcpy(r + i, &ri, sizeof ri);
+      std::memcpy(rb + i, &bi, sizeof bi);
       rr += ri * ri;
-      if (kind_[br] == kCluster) continue;
-      const V4 zi = scale * block_times(M.val.data() + K * M.dblk[br], rb + o);  // lane 3 is 0
-      store3(zb + o, zi);
-      dot += bi * zi;
     }
-    rz = sum3(dot);
-    return sum3(rr);
+    double sum = rr[0] + rr[1] + rr[2] + rr[3];
+    for (; i < i1; ++i) {
+      x[i] += alpha * t[i];
+      r[i] -= alpha * at[i];
+      rb[i] -= alpha * (t[i] + u[i]);
+      sum += r[i] * r[i];
+    }
+    return sum;
   }
 
   // z = E r (the 3x3 diagonal blocks over omega) on block rows [lo, hi) outside the cluster,
@@ -608,7 +661,12 @@ class PcgSolver final : public LinearSolver {
       (reaches ? rows[2] : inner).push_back(br);
     }
     rows[0].swap(inner);
-    if (8 * static_cast<int>(rows[2].size()) > cloth) rows = split_by_levels(A, hub);
+    split_ = rows[1].empty() ? nb : rows[1].front();
+    if (8 * static_cast<int>(rows[2].size()) > cloth) {
+      rows = split_by_levels(A, hub);
+      split_ = nb / 2;
+    }
+    split_ &= ~3;  // 3 split_ a multiple of 4: update's 4-lane runs
     order_.clear();
     for (int q = 0; q < 3; ++q) {
       seg_[q] = static_cast<int>(order_.size());
@@ -700,18 +758,17 @@ class PcgSolver final : public LinearSolver {
     return pt;
   }
 
-  // t = (E + L^T)^-1 p on the rows at order_ [begin, end) outside the cluster, last to first
-  // (the rows after them done); returns their p . t in lanes.
+  // t = (E + L^T)^-1 p on the rows of `one` and `two` outside the cluster, each last to first
+  // (in_turn; the rows after them done); adds their p . t to dot[0] and dot[1].
   template <class T>
-  V4 backward_rows(const Bsr<T>& M, const double* p, double* t, int begin, int end) const {
+  void backward_rows(const Bsr<T>& M, const double* p, double* t, Rows one, Rows two, V4* dot) const {
     constexpr int K = Bsr<T>::kBlock;
     const T* val = M.val.data();
     const int* xoff = M.xoff.data();
     const double* dinv = M.dinv.data();
-    V4 dot{};
-    for (int i = end - 1; i >= begin; --i) {
-      const int br = order_[i], kind = kind_[br];
-      if (kind == kCluster) continue;
+    in_turn<true>(one, two, [&](int br, int which) __attribute__((always_inline)) {
+      const int kind = kind_[br];
+      if (kind == kCluster) return;
       const V4 pi = load4(p + 3 * br);
       V4 s = pi;
       if (kind == kTouched) s -= load4(w_.data() + 3 * br);
@@ -719,24 +776,21 @@ class PcgSolver final : public LinearSolver {
       for (int k = M.rowptr[br + 1] - 1; k > M.dblk[br]; --k) s -= block_times(val + K * k, t + xoff[k]);
       const V4 ti = block_times(dinv + 12 * br, s);  // lane 3 is 0
       store3(t + 3 * br, ti);
-      dot += pi * ti;
-    }
-    return dot;
+      dot[which] += pi * ti;
+    });
   }
 
-  // After the backward sweep, on the rows at order_ [begin, end) outside the cluster (the rows
-  // before them done): u = (E + L)^-1 (p + (D - 2E) t), A t = L t + p + (D - E) t, and with
-  // kFresh the residual r = E r' + L r' from the transformed one (z' = E r' given); returns
-  // their p . u in lanes.
+  // After the backward sweep, on the rows of `one` and `two` outside the cluster (in_turn; the
+  // rows before them done): u = (E + L)^-1 (p + (D - 2E) t), A t = L t + p + (D - E) t, and
+  // with kFresh the residual r = E r' + L r' from the transformed one (z' = E r' given); adds
+  // their p . u to dot[0] and dot[1].
   template <bool kFresh, class T>
-  V4 forward_rows(const Bsr<T>& M, const double* p, const double* t, double* u, double* at,
-                  const double* rb, const double* zb, double* r, int begin, int end) const {
+  void forward_rows(const Bsr<T>& M, const double* p, const double* t, double* u, double* at,
+                    const double* rb, const double* zb, double* r, Rows one, Rows two, V4* dot) const {
     constexpr int K = Bsr<T>::kBlock;
     const V4 c_dt_u = splat(2.0 / omega_ - 1.0), c_dt_a = splat(1.0 - 1.0 / omega_);
-    V4 dot{};
-    for (int i = begin; i < end; ++i) {
-      const int br = order_[i];
-      if (kind_[br] == kCluster) continue;
+    in_turn<false>(one, two, [&](int br, int which) __attribute__((always_inline)) {
+      if (kind_[br] == kCluster) return;
       const V4 pi = load4(p + 3 * br);
       const V4 dt = block_times(M.val.data() + K * M.dblk[br], t + 3 * br);
       V4 s = pi - c_dt_u * dt;        // p + (D - 2E) t - L u
@@ -753,9 +807,8 @@ class PcgSolver final : public LinearSolver {
       if constexpr (kFresh) store3(r + 3 * br, g);
       const V4 ui = block_times(M.dinv.data() + 12 * br, s);  // lane 3 is 0
       store3(u + 3 * br, ui);
-      dot += pi * ui;
-    }
-    return dot;
+      dot[which] += pi * ui;
+    });
   }
 
   // The cluster's part of the forward sweep, after the rows': u_C, A t_C and with kFresh r_C;
@@ -976,6 +1029,7 @@ class PcgSolver final : public LinearSolver {
   std::vector<int> order_, rank_;  // the sweeps' row order, and each row's place in it
   std::array<int, 4> seg_{};       // order_'s parts: [seg_0, seg_1), [seg_1, seg_2); separator [seg_2, seg_3)
   std::array<double, 2> part_sum_{}, part_rz_{};  // the two threads' partial sums, added in order
+  int split_ = 0;  // update's two ranges of block rows: [0, split_), [split_, nb)
   WorkerPool* pool_ = nullptr;
   Bsr<double> md_;
   Bsr<float> mf_;
