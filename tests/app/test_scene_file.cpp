@@ -77,19 +77,12 @@ TEST(ShippedFiles, HangingSquareScene) {
   EXPECT_NE(s.material_path.find("denim-handmade.toml"), std::string::npos);
 }
 
-// The real-time scene of a large cloth is the main job's session (cloth, device, script,
-// fingertips, coupling, preroll) on the 89 x 89 quad square, its assembly on one thread.
-TEST(ShippedFiles, HangingSquare16kHapticSceneIsTheMainJobOnALargeCloth) {
-  const auto main = load_scene(kSourceDir + "/tools/scenes/hanging_square.toml");
-  const auto big = load_scene(kSourceDir + "/tools/scenes/hanging_square_16k_haptic.toml");
-  EXPECT_EQ(big.name, "hanging_square_16k_haptic");
-  EXPECT_EQ(big.mesh.triangles.size(), 15842u);
-  EXPECT_EQ(big.mesh.positions.size(), 8100u);
-  EXPECT_EQ(big.pins.size(), 90u);
+// The real-time scenes of larger cloths are the main job's session (cloth, device, script,
+// fingertips, coupling, preroll) on a finer square.
+static void expect_main_job_session(const hapticloth::app::Scene& big, const hapticloth::app::Scene& main) {
   EXPECT_EQ(big.material_path, main.material_path);
   EXPECT_DOUBLE_EQ(big.integrator.dt, main.integrator.dt);
   EXPECT_EQ(big.solver, main.solver);
-  EXPECT_EQ(big.integrator.assembly_threads, 1);
   ASSERT_TRUE(big.has_device);
   EXPECT_EQ(big.device.driver, main.device.driver);
   EXPECT_EQ(big.device.script, main.device.script);
@@ -100,6 +93,30 @@ TEST(ShippedFiles, HangingSquare16kHapticSceneIsTheMainJobOnALargeCloth) {
   EXPECT_DOUBLE_EQ(big.haptics.finger.friction, main.haptics.finger.friction);
   EXPECT_DOUBLE_EQ(big.preroll, main.preroll);
   EXPECT_EQ(big.local_patch, "auto");
+}
+
+// 89 x 89 quads, the multirate path's real-time scene, its assembly on one thread.
+TEST(ShippedFiles, HangingSquare16kHapticSceneIsTheMainJobOnALargeCloth) {
+  const auto main = load_scene(kSourceDir + "/tools/scenes/hanging_square.toml");
+  const auto big = load_scene(kSourceDir + "/tools/scenes/hanging_square_16k_haptic.toml");
+  EXPECT_EQ(big.name, "hanging_square_16k_haptic");
+  EXPECT_EQ(big.mesh.triangles.size(), 15842u);
+  EXPECT_EQ(big.mesh.positions.size(), 8100u);
+  EXPECT_EQ(big.pins.size(), 90u);
+  EXPECT_EQ(big.integrator.assembly_threads, 1);
+  expect_main_job_session(big, main);
+}
+
+// 45 x 45 quads, direct coupling's real-time scene of a finer cloth, on two threads.
+TEST(ShippedFiles, HangingSquare4kHapticSceneIsTheMainJobOnAFinerCloth) {
+  const auto main = load_scene(kSourceDir + "/tools/scenes/hanging_square.toml");
+  const auto fine = load_scene(kSourceDir + "/tools/scenes/hanging_square_4k_haptic.toml");
+  EXPECT_EQ(fine.name, "hanging_square_4k_haptic");
+  EXPECT_EQ(fine.mesh.triangles.size(), 4050u);
+  EXPECT_EQ(fine.mesh.positions.size(), 2116u);
+  EXPECT_EQ(fine.pins.size(), 46u);
+  EXPECT_EQ(fine.integrator.assembly_threads, 2);
+  expect_main_job_session(fine, main);
 }
 
 TEST_F(SceneFileTest, ValidSceneLoads) {
