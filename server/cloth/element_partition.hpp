@@ -1,5 +1,6 @@
-// The elements split for assembly on two threads: the vertices are cut into parts by recursive
-// median bisection of the rest shape (along each subset's longest side); an element whose three
+// The elements split for assembly on two threads: the vertices are cut in two halves by number
+// (by position where that crosses far more elements), then into parts by recursive median
+// bisection of the rest shape (along each subset's longest side); an element whose three
 // vertices lie in one part belongs to it, the others (across a cut) are separators. Elements of
 // different parts share no vertex, so their blocks and right-hand sides land in different rows
 // and the parts can be assembled at the same time; the separators come after them. Every list

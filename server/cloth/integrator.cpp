@@ -360,7 +360,7 @@ bool Integrator::proxy_response(std::vector<Mat3>& R) {
     unit_.setZero(A_.n);
   }
   const double h = last_h_, ah = alpha_ * h;
-  const WorkerPool::Burst burst(pool_.get());  // 3 P solves in a row (single_step)
+  const WorkerPool::Burst burst(pool_.get());  // 3 P solves in a row (as in single_step)
   for (int q = 0; q < P; ++q)
     for (int c = 0; c < 3; ++c) {
       // d b_q / d T_q = h k_q (the coupling's right-hand side), so d dv / d T_q = A^-1 h k_q e;

@@ -27,8 +27,8 @@ struct IntegratorConfig {
                                   ///< above which a step is an energy explosion
   int proxies = 0;                ///< massless proxy nodes solved with the cloth (fingertips)
   int max_contact_revisions = 16; ///< re-solves of a step whose contact set changed
-  /// Threads of the element assembly: 1, or 2 (a helper thread shares it with the stepping
-  /// thread; meshes under kMinParallelElements stay on one).
+  /// Threads of the element assembly and the PCG's sweeps: 1, or 2 (a helper thread shares
+  /// them with the stepping thread; meshes under kMinParallelElements stay on one).
   int assembly_threads = 1;
 
   /// Throws std::invalid_argument naming the offending field.

@@ -304,8 +304,12 @@ inline V4 column(const float* c) {
 #endif
 }
 inline V4 splat(double x) { return V4{x, x, x, x}; }
-// Lanes 0-2 are v[0..2]; lane 3 is whatever follows (v must have one entry past its end).
+// Lanes 0-2 are v[0..2]; lane 3 is whatever follows (v must have one entry past its end, which
+// no other thread may be writing: there, load3).
 inline V4 load4(const double* v) { return column(v); }
+// Lanes 0-2 are v[0..2], lane 3 is 0: a row whose next entry may be the other part's, written
+// by the other thread at the same time.
+inline V4 load3(const double* v) { return V4{v[0], v[1], v[2], 0.0}; }
 // Stores lanes 0-2 only: the entry after them may be another row's, already computed.
 inline void store3(double* v, V4 a) {
   v[0] = a[0];

@@ -1,6 +1,7 @@
 // Linear solvers for the symmetric positive definite system of eq. 9, behind one interface.
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <string>
 
@@ -46,11 +47,15 @@ class LinearSolver {
   /// Solves whose single-precision matrix copy stalled above the tolerance and were solved
   /// again in double precision (PCG with PcgOptions::single_precision_matrix), since analyze().
   int precision_fallbacks() const { return precision_fallbacks_; }
+  /// Sweeps of a part of the matrix that the helper thread (use_pool) ran, since analyze(): 0
+  /// when it never had one, or never came in time.
+  std::uint64_t helper_sweeps() const { return helper_sweeps_; }
 
  protected:
   int iterations_ = 0;
   double residual_ = 0.0;
   int precision_fallbacks_ = 0;
+  std::uint64_t helper_sweeps_ = 0;
 };
 
 /// The PCG's preconditioner. Both treat the fingertip proxies with the vertices they touch as

@@ -5,6 +5,8 @@
 // the helper is slow to wake (or busy elsewhere) the caller simply takes more of the indices.
 // Within a Burst the helper spins between runs instead: a futex wake costs 5-50 us here, too
 // much for the two runs of every PCG iteration (25 and 8 us on the pinched 4050-triangle square).
+// A spinning helper takes its core from threads of normal priority; the haptic thread runs at a
+// real-time priority (SCHED_FIFO when permitted), which preempts it.
 #pragma once
 
 #include <atomic>
