@@ -432,8 +432,8 @@ class PcgSolver final : public LinearSolver {
       gather_cluster(rb, crb_.data());
       for (int c : cluster_) rb[3 * c] = rb[3 * c + 1] = rb[3 * c + 2] = 0.0;
     }
-    V4 ps[2] = {};
-    backward_rows(M, pb, t, separator(), Rows{}, ps);
+    V4 pt_s[2] = {}, pu_s[2] = {};  // the separator's
+    backward_rows(M, pb, t, separator(), Rows{}, pt_s);
     auto sweep = [&](Rows a, Rows b, double* sums) {
       if (turn) {
         next_direction(beta, pb, zb, a);
@@ -446,12 +446,9 @@ class PcgSolver final : public LinearSolver {
       sums[1] = sum3(pt[1]) + sum3(pu[1]);
     };
     both_parts(sweep);
-    const double pt_s = sum3(ps[0]);
-    ps[0] = V4{};
-    forward_rows<kFresh>(M, pb, t, u, at, rb, zb, r, separator(), Rows{}, ps);
-    const double pu_s = sum3(ps[0]);
+    forward_rows<kFresh>(M, pb, t, u, at, rb, zb, r, separator(), Rows{}, pu_s);
     const double pu_c = forward_cluster<kFresh>(M, pb, t, u, at, rb, zb, r);
-    return pt_c + pt_s + part_sum_[0] + part_sum_[1] + pu_s + pu_c;
+    return pt_c + sum3(pt_s[0]) + part_sum_[0] + part_sum_[1] + sum3(pu_s[0]) + pu_c;
   }
 
   // p' = z' + beta p' on `rows` outside the cluster, and on one row.

@@ -79,7 +79,8 @@ TEST(ShippedFiles, HangingSquareScene) {
 
 // The real-time scenes of larger cloths are the main job's session (cloth, device, script,
 // fingertips, coupling, preroll) on a finer square.
-static void expect_main_job_session(const hapticloth::app::Scene& big, const hapticloth::app::Scene& main) {
+static void expect_main_job_session(const hapticloth::app::Scene& big,
+                                    const hapticloth::app::Scene& main) {
   EXPECT_EQ(big.material_path, main.material_path);
   EXPECT_DOUBLE_EQ(big.integrator.dt, main.integrator.dt);
   EXPECT_EQ(big.solver, main.solver);
@@ -95,28 +96,28 @@ static void expect_main_job_session(const hapticloth::app::Scene& big, const hap
   EXPECT_EQ(big.local_patch, "auto");
 }
 
-// 89 x 89 quads, the multirate path's real-time scene, its assembly on one thread.
-TEST(ShippedFiles, HangingSquare16kHapticSceneIsTheMainJobOnALargeCloth) {
-  const auto main = load_scene(kSourceDir + "/tools/scenes/hanging_square.toml");
-  const auto big = load_scene(kSourceDir + "/tools/scenes/hanging_square_16k_haptic.toml");
-  EXPECT_EQ(big.name, "hanging_square_16k_haptic");
-  EXPECT_EQ(big.mesh.triangles.size(), 15842u);
-  EXPECT_EQ(big.mesh.positions.size(), 8100u);
-  EXPECT_EQ(big.pins.size(), 90u);
-  EXPECT_EQ(big.integrator.assembly_threads, 1);
-  expect_main_job_session(big, main);
-}
+// The finer sessions: the scene's file and name, its mesh, and its assembly threads.
+struct FinerSession {
+  const char* name;
+  size_t triangles, positions, pins;
+  int threads;
+};
 
-// 45 x 45 quads, direct coupling's real-time scene of a finer cloth, on two threads.
-TEST(ShippedFiles, HangingSquare4kHapticSceneIsTheMainJobOnAFinerCloth) {
+// 89 x 89 quads (the multirate path's real-time scene, on one thread) and 45 x 45 (direct
+// coupling's, on two).
+TEST(ShippedFiles, FinerHapticScenesAreTheMainJobOnAFinerCloth) {
   const auto main = load_scene(kSourceDir + "/tools/scenes/hanging_square.toml");
-  const auto fine = load_scene(kSourceDir + "/tools/scenes/hanging_square_4k_haptic.toml");
-  EXPECT_EQ(fine.name, "hanging_square_4k_haptic");
-  EXPECT_EQ(fine.mesh.triangles.size(), 4050u);
-  EXPECT_EQ(fine.mesh.positions.size(), 2116u);
-  EXPECT_EQ(fine.pins.size(), 46u);
-  EXPECT_EQ(fine.integrator.assembly_threads, 2);
-  expect_main_job_session(fine, main);
+  for (const FinerSession& f : {FinerSession{"hanging_square_16k_haptic", 15842, 8100, 90, 1},
+                                FinerSession{"hanging_square_4k_haptic", 4050, 2116, 46, 2}}) {
+    SCOPED_TRACE(f.name);
+    const auto fine = load_scene(kSourceDir + "/tools/scenes/" + f.name + ".toml");
+    EXPECT_EQ(fine.name, f.name);
+    EXPECT_EQ(fine.mesh.triangles.size(), f.triangles);
+    EXPECT_EQ(fine.mesh.positions.size(), f.positions);
+    EXPECT_EQ(fine.pins.size(), f.pins);
+    EXPECT_EQ(fine.integrator.assembly_threads, f.threads);
+    expect_main_job_session(fine, main);
+  }
 }
 
 TEST_F(SceneFileTest, ValidSceneLoads) {

@@ -270,11 +270,7 @@ TEST(Solver, PcgWithContactHubsMatchesCholmod) {
     SCOPED_TRACE(cloth::to_string(pre));
     int iterations[2];
     for (bool hub : {false, true}) {
-      cloth::PcgOptions po;
-      po.tolerance = 1e-10;
-      po.hub_block = hub;
-      po.preconditioner = pre;
-      auto pcg = cloth::make_pcg_solver(po);
+      auto pcg = cloth::make_pcg_solver({.tolerance = 1e-10, .hub_block = hub, .preconditioner = pre});
       pcg->analyze(A);
       std::vector<double> x(A.n, 0.0);
       ASSERT_EQ(pcg->solve(A, b.data(), x.data()), cloth::SolveStatus::Ok) << "hub block " << hub;
@@ -304,7 +300,9 @@ TEST(Solver, SsorOverRelaxedMatchesCholmod) {
       ASSERT_EQ(pcg->solve(A, b.data(), x.data()), cloth::SolveStatus::Ok);
       EXPECT_EQ(pcg->precision_fallbacks(), 0);  // the float copy converges on its own matrix
       EXPECT_LE(max_abs_diff(x, x_chol), (float_matrix ? 1e-5 : 1e-7) * max_abs(x_chol));
-      if (!float_matrix) EXPECT_LE(relative_residual(A, b, x), 1.01e-10);
+      if (!float_matrix) {
+        EXPECT_LE(relative_residual(A, b, x), 1.01e-10);
+      }
     }
     // At the scenes' tolerances no check afresh: the carried residual alone must be true.
     for (double tol : {1e-2, 1e-3}) {
@@ -314,7 +312,9 @@ TEST(Solver, SsorOverRelaxedMatchesCholmod) {
       ASSERT_EQ(pcg->solve(A, b.data(), x.data()), cloth::SolveStatus::Ok);
       EXPECT_LE(relative_residual(A, b, x), 1.01 * tol) << "omega " << omega;
       EXPECT_NEAR(relative_residual(A, b, x), pcg->residual(), 1e-3 * tol) << "omega " << omega;
-      if (tol == 1e-3) EXPECT_GE(pcg->iterations(), 8) << "a sweep must take r afresh (kRefresh)";
+      if (tol == 1e-3) {
+        EXPECT_GE(pcg->iterations(), 8) << "a sweep must take r afresh (kRefresh)";
+      }
     }
   }
   EXPECT_THROW(cloth::make_pcg_solver({.ssor_omega = 2.0}), std::invalid_argument);
@@ -352,11 +352,8 @@ TEST(Solver, PcgSolveChangedReloadsTheChangedRows) {
   for (auto pre : kPreconditioners)
   for (bool float_matrix : {false, true}) {
     SCOPED_TRACE(cloth::to_string(pre));
-    cloth::PcgOptions po;
-    po.tolerance = 1e-10;
-    po.single_precision_matrix = float_matrix;
-    po.preconditioner = pre;
-    auto pcg = cloth::make_pcg_solver(po);
+    auto pcg = cloth::make_pcg_solver(
+        {.tolerance = 1e-10, .single_precision_matrix = float_matrix, .preconditioner = pre});
     pcg->analyze(A0);
     std::vector<double> x(A0.n, 0.0), x_stale(A0.n, 0.0);
     ASSERT_EQ(pcg->solve(A0, b.data(), x.data()), cloth::SolveStatus::Ok);
