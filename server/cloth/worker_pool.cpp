@@ -50,13 +50,8 @@ void WorkerPool::run_raw(int n, void (*fn)(void*, int), void* ctx) {
   generation_.fetch_add(1, std::memory_order_release);
   generation_.notify_one();
   work(false);
-  // The helper may still be inside its last index: wait for it (a few tens of us at most),
-  // giving the core away now and then in case the helper waits for it.
-  for (int spins = 1; done_.load(std::memory_order_acquire) < n; ++spins)
-    if (spins % 1024 == 0)
-      std::this_thread::yield();
-    else
-      pause();
+  // The helper may still be inside its last index: wait for it (a few tens of us at most).
+  spin_while([&] { return done_.load(std::memory_order_acquire) < n; });
 }
 
 void WorkerPool::pause() {
@@ -70,15 +65,10 @@ void WorkerPool::pause() {
 void WorkerPool::helper_loop() {
   std::uint32_t seen = 0;
   for (;;) {
-    // In a burst, spin until the next run (or the burst's end), giving the core away now and
-    // then (should the caller share it); then sleep as usual.
-    for (int spins = 1; bursts_.load(std::memory_order_acquire) > 0 &&
-                        generation_.load(std::memory_order_acquire) == seen;
-         ++spins)
-      if (spins % 1024 == 0)
-        std::this_thread::yield();
-      else
-        pause();
+    // In a burst, spin until the next run (or the burst's end); then sleep as usual.
+    spin_while([&] {
+      return bursts_.load(std::memory_order_acquire) > 0 && generation_.load(std::memory_order_acquire) == seen;
+    });
     generation_.wait(seen, std::memory_order_acquire);
     seen = generation_.load(std::memory_order_acquire);
     if (stop_.load(std::memory_order_acquire)) return;

@@ -53,6 +53,16 @@ class WorkerPool {
   void run_raw(int n, void (*fn)(void*, int), void* ctx);
   void helper_loop();
   static void pause();
+  // Spins while keep() holds, giving the core away every 1024 rounds (in case the thread waited
+  // for shares it).
+  template <class F>
+  static void spin_while(F&& keep) {
+    for (int spins = 1; keep(); ++spins)
+      if (spins % 1024 == 0)
+        std::this_thread::yield();
+      else
+        pause();
+  }
   int claim(bool from_back);
   int work(bool from_back);
 
