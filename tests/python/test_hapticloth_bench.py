@@ -204,6 +204,35 @@ def test_step_preconditioners():
     assert abs(runs["ssor"]["lowest_vertex_height_m"] - runs["block-jacobi"]["lowest_vertex_height_m"]) < 1e-4
 
 
+def test_step_pinch_of_a_settled_cloth():
+    """--settle brings the hanging square to rest before the pinch, as the haptic scenes'
+    preroll does: the fingertips then close across the hanging cloth (along y, not the level
+    start's z), and a cloth at rest takes fewer solver iterations and re-solves a step than the
+    one pinched as it falls from level. Both pinches hold the cloth outside the fingertips."""
+    falling = bench("step", "--scene", str(SCENE), "--pinch", "--steps", "300")
+    settled = bench("step", "--scene", str(SCENE), "--pinch", "--settle", "3", "--steps", "300")
+    assert falling["settled_s"] == 0.0 and settled["settled_s"] == 3.0
+    assert falling["pinch_across"] == [0.0, 0.0, 1.0]
+    assert abs(settled["pinch_across"][1]) > 0.99
+    for j in (falling, settled):
+        assert j["both_fingers_in_contact"] > 0.95
+        assert j["max_penetration_mm"] < 0.5
+    assert settled["solver_iterations_per_step"]["mean"] < 0.7 * falling["solver_iterations_per_step"]["mean"]
+    assert settled["solves_per_step"] < falling["solves_per_step"]
+
+
+def test_step_bad_settle():
+    def run(*args):
+        return subprocess.run([str(program("hapticloth-bench")), "step", "--scene", str(SCENE), *args, "--json"],
+                              capture_output=True, text=True, timeout=60)
+    r = run("--pinch", "--settle", "-1")
+    assert r.returncode != 0 and "--settle: must be >= 0 and <= 60, not -1" in r.stderr
+    r = run("--settle", "3")
+    assert r.returncode != 0 and "--settle requires --pinch" in r.stderr
+    for r in (run("--pinch", "--settle", "-1"), run("--settle", "3")):
+        assert "Traceback" not in r.stderr
+
+
 @pytest.mark.parametrize("flag,value", [("--pcg-omega", "2.5"), ("--pcg-preconditioner", "ilu")])
 def test_step_bad_solver_flags(flag, value):
     r = subprocess.run([str(program("hapticloth-bench")), "step", "--scene", str(SCENE), flag, value, "--json"],

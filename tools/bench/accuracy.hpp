@@ -72,6 +72,9 @@ nlohmann::json late_ticks(const LateTickOptions& opt);
 
 /// The scene's cloth pinched at its middle by both fingertips (direct coupling, the scene's
 /// solver) for `seconds` on the stepped clock: the global step's time with both in contact.
-nlohmann::json pinch_step(const app::Scene& scene, double seconds);
+/// With `settle_s` > 0 the cloth is first brought to rest (settle_s of 20 ms steps) and pinched
+/// across its surface at the vertex nearest its centroid; else the scene's start state is
+/// pinched along z at the middle of its extent.
+nlohmann::json pinch_step(const app::Scene& scene, double seconds, double settle_s = 0.0);
 
 }  // namespace hapticloth::bench

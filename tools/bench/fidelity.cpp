@@ -12,6 +12,7 @@
 #include <iostream>
 
 #include "accuracy.hpp"
+#include "bench_common.hpp"
 #include "app/scene_file.hpp"
 #include "support/touch_scenes.hpp"
 
@@ -128,7 +129,45 @@ json by_solves_p50(const std::array<haptics::Histogram, 4>& h) {
   return out;
 }
 
-json pinch_step(const app::Scene& scene, double seconds) {
+namespace {
+
+// Where the two fingertips pinch: a point of the cloth and the direction across it.
+struct PinchSite {
+  Eigen::Vector3d at, across;
+};
+
+// The middle of the start state's extent, along z (the scenes' cloths start level), offset a
+// little so that the fingertips' centres are over no vertex or edge.
+PinchSite middle_of_extent(const cloth::ClothModel& model) {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+  for (const auto& p : model.rest_positions) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  return {0.5 * (lo + hi) + Eigen::Vector3d(0.0011, 0.0007, 0.0), Eigen::Vector3d::UnitZ()};
+}
+
+// The vertex of `s` nearest its centroid, across the cloth there (the area-weighted normal of
+// the triangles around it), offset in its tangent plane as middle_of_extent's point is.
+PinchSite middle_of_cloth(const cloth::ClothModel& model, const cloth::ClothState& s) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& p : s.x) c += p;
+  c /= static_cast<double>(s.x.size());
+  int mid = 0;
+  for (int i = 0; i < static_cast<int>(s.x.size()); ++i)
+    if ((s.x[i] - c).squaredNorm() < (s.x[mid] - c).squaredNorm()) mid = i;
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  for (const auto& e : model.elements)
+    if (e.v[0] == mid || e.v[1] == mid || e.v[2] == mid)
+      n += (s.x[e.v[1]] - s.x[e.v[0]]).cross(s.x[e.v[2]] - s.x[e.v[0]]);
+  n.normalize();
+  const Eigen::Vector3d t1 = n.unitOrthogonal(), t2 = n.cross(t1);
+  return {s.x[mid] + 0.0011 * t1 + 0.0007 * t2, n};
+}
+
+}  // namespace
+
+json pinch_step(const app::Scene& scene, double seconds, double settle_s) {
   const cloth::ClothModel model = app::build_model(scene);
   haptics::SessionConfig sc = scene.haptics;
   sc.local_patch = false;
@@ -136,22 +175,21 @@ json pinch_step(const app::Scene& scene, double seconds) {
   sc.try_realtime = false;
   cloth::IntegratorConfig ic = scene.integrator;
   ic.dt = 1.0 / sc.haptic_rate;  // direct coupling steps at the haptic period
-  // Pinch the middle of the cloth from above and below, 2 mm squeeze each, and hold.
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
-  for (const auto& p : model.rest_positions) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  const Eigen::Vector3d at = 0.5 * (lo + hi) + Eigen::Vector3d(0.0011, 0.0007, 0.0);
+  // A cloth brought to rest is the haptic scenes' case (their preroll); the scene's start state
+  // (the square released level) is pinched while it falls and swings.
+  cloth::ClothState start = cloth::rest_state(model);
+  if (settle_s > 0.0) start = settle(scene, model, start, 0.02, settle_s);
+  const PinchSite site = settle_s > 0.0 ? middle_of_cloth(model, start) : middle_of_extent(model);
+  // Pinch from either side, 2 mm squeeze each, and hold.
   const double r = sc.finger.radius, sq = 0.002;
   devices::Trajectory tr(2);
   for (int f = 0; f < 2; ++f) {
     const double side = f == 0 ? 1.0 : -1.0;
-    tr.add(f, 0.0, at + Eigen::Vector3d(0, 0, side * r));
-    tr.add(f, 0.05, at + Eigen::Vector3d(0, 0, side * (r - sq)));
-    tr.add(f, seconds, at + Eigen::Vector3d(0, 0, side * (r - sq)));
+    tr.add(f, 0.0, site.at + side * r * site.across);
+    tr.add(f, 0.05, site.at + side * (r - sq) * site.across);
+    tr.add(f, seconds, site.at + side * (r - sq) * site.across);
   }
-  test::TouchRig rig(cloth::ClothModel(model), std::move(tr), sc, ic, cloth::rest_state(model), scene.solver,
+  test::TouchRig rig(cloth::ClothModel(model), std::move(tr), sc, ic, start, scene.solver,
                      scene.pcg);
   long both = 0, ticks = 0;
   // Where a step's time goes: the solver's iterations (summed over the re-solves) and the
@@ -181,6 +219,8 @@ json pinch_step(const app::Scene& scene, double seconds) {
   const auto& st = rep.sim_step_us;
   return {{"benchmark", "step-pinch"},
           {"scene", scene.name},
+          {"settled_s", settle_s},  // 0: the scene's start state, pinched as it falls
+          {"pinch_across", {site.across.x(), site.across.y(), site.across.z()}},
           {"triangles", model.num_triangles()},
           {"solver", scene.solver},
           {"both_fingers_in_contact", static_cast<double>(both) / std::max(1L, ticks)},

@@ -139,8 +139,14 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 2));
   step->add_flag("--json", json, "one JSON object on stdout");
   bool pinch = false;
-  step->add_flag("--pinch", pinch, "both fingertips pinch the cloth's middle (direct coupling, "
-                                    "stepped clock, --steps haptic ticks)");
+  auto* pinch_flag = step->add_flag("--pinch", pinch, "both fingertips pinch the cloth's middle (direct coupling, "
+                                                       "stepped clock, --steps haptic ticks)");
+  double settle_s = 0.0;
+  step->add_option("--settle", settle_s,
+                   "--pinch: bring the cloth to rest first with S s of 20 ms steps (as the haptic scenes' "
+                   "preroll does) and pinch it across its surface (default 0: pinch the scene's start state)")
+      ->check(opts::number_in(0.0, 60.0))
+      ->needs(pinch_flag);
 
   auto* haptic = cli.add_subcommand(
       "haptic", "the 1 kHz haptic loop in real time with the mock device and the global "
@@ -273,7 +279,7 @@ int main(int argc, char** argv) {
     if (threads > 0) scene.integrator.assembly_threads = threads;
     scene.integrator.validate();
     if (pinch) {
-      std::cout << bench::pinch_step(scene, steps / scene.haptics.haptic_rate).dump(json ? -1 : 1) << "\n";
+      std::cout << bench::pinch_step(scene, steps / scene.haptics.haptic_rate, settle_s).dump(json ? -1 : 1) << "\n";
       return 0;
     }
     const app::RunSummary r = app::run_headless(scene, steps);
