@@ -159,6 +159,11 @@ class Integrator {
   /// its first call only.
   bool proxy_response(std::vector<Mat3>& R);
 
+  /// Keeps the helper thread of the assembly and the PCG (assembly_threads 2) awake while the
+  /// guard lives: a caller that has work of its own right before step() (the contact search)
+  /// hides the helper's wake-up behind it. No effect on one thread.
+  WorkerPool::Burst keep_helper_awake() { return WorkerPool::Burst(pool_.get()); }
+
   const IntegratorEvents& events() const { return events_; }
   const StepTiming& last_timing() const { return timing_; }
   const IntegratorConfig& config() const { return cfg_; }

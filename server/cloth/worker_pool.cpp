@@ -4,7 +4,9 @@
 #include <immintrin.h>
 #endif
 
+#include <chrono>
 namespace hapticloth::cloth {
+double g_wait_us = 0.0;
 
 WorkerPool::WorkerPool() : thread_([this] { helper_loop(); }) {}
 
@@ -51,7 +53,16 @@ void WorkerPool::run_raw(int n, void (*fn)(void*, int), void* ctx) {
   generation_.notify_one();
   work(false);
   // The helper may still be inside its last index: wait for it (a few tens of us at most).
+  const auto w0 = std::chrono::steady_clock::now();
   spin_while([&] { return done_.load(std::memory_order_acquire) < n; });
+  g_wait_us += std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - w0).count();
+}
+
+// A new generation with no index to claim: the helper wakes, finds nothing, and (in a burst)
+// spins until the next run.
+void WorkerPool::wake() {
+  generation_.fetch_add(1, std::memory_order_release);
+  generation_.notify_one();
 }
 
 void WorkerPool::pause() {

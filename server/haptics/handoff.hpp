@@ -40,7 +40,7 @@ struct ProxyResult {
 struct ClothSnapshot {
   double time = -1.0;         ///< loop clock of the step (s); < 0: none yet
   std::uint64_t step = 0;
-  std::vector<Vec3> x, v, n;  ///< vertex positions (m), velocities (m/s), unit normals
+  std::vector<Vec3> x, v;     ///< vertex positions (m), velocities (m/s)
   std::array<bool, kMaxFingers> near{};  ///< the fingertip is within reach of the cloth
   std::array<ProxyResult, kMaxFingers> proxy{};  ///< direct coupling: the step's proxies
   /// The multirate path's local model (cloth::Integrator::proxy_response): R[p * kMaxFingers + q],
@@ -59,7 +59,6 @@ struct ClothSnapshot {
   void resize(int vertices, int candidates = 0) {
     x.assign(vertices, Vec3::Zero());
     v.assign(vertices, Vec3::Zero());
-    n.assign(vertices, Vec3::UnitZ());
     for (auto& t : near_triangles) t.assign(candidates, 0);
   }
   /// Copy that keeps this snapshot's storage (no allocation when sizes match).
@@ -68,7 +67,6 @@ struct ClothSnapshot {
     step = o.step;
     std::copy(o.x.begin(), o.x.end(), x.begin());
     std::copy(o.v.begin(), o.v.end(), v.begin());
-    std::copy(o.n.begin(), o.n.end(), n.begin());
     near = o.near;
     proxy = o.proxy;
     has_response = o.has_response;

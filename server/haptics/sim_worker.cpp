@@ -64,20 +64,7 @@ SimWorker::SimWorker(const cloth::ClothModel& model, const cloth::IntegratorConf
     tips_ = std::make_unique<FingertipContact>(model_, tris_, fingers_,
                                                contact_params(fp_, cp_.margin), integ_);
   }
-  normals_.assign(model_.num_vertices(), Vec3::UnitZ());
   mine_.resize(model_.num_vertices(), static_cast<int>(to_haptics.back().near_triangles[0].size()));
-}
-
-void SimWorker::vertex_normals() {
-  std::fill(normals_.begin(), normals_.end(), Vec3::Zero());
-  for (const auto& t : tris_) {
-    const Vec3 n = (s_.x[t[1]] - s_.x[t[0]]).cross(s_.x[t[2]] - s_.x[t[0]]);  // area-weighted
-    for (int k = 0; k < 3; ++k) normals_[t[k]] += n;
-  }
-  for (auto& n : normals_) {
-    const double l = n.norm();
-    n = l > 0.0 ? Vec3(n / l) : Vec3::UnitZ();
-  }
 }
 
 // The device's fingertips at the end of the coming step: the latest tick's positions carried
@@ -153,14 +140,12 @@ Vec3 SimWorker::applied_force() const {
 void SimWorker::publish(double now) {
   in_.acquire();
   const HapticReport& r = in_.front();
-  vertex_normals();
   mark_near(r);
   ClothSnapshot& snap = out_.back();
   snap.time = now;
   snap.step = steps_;
   std::copy(s_.x.begin(), s_.x.end(), snap.x.begin());
   std::copy(s_.v.begin(), s_.v.end(), snap.v.begin());
-  std::copy(normals_.begin(), normals_.end(), snap.n.begin());
   for (int f = 0; f < fingers_; ++f) snap.proxy[f] = tips_ ? tips_->result(f) : ProxyResult{};
   mine_.assign(snap);
   out_.publish();
@@ -180,11 +165,14 @@ void SimWorker::step(double now) {
   const auto t0 = std::chrono::steady_clock::now();
   in_.acquire();
   const HapticReport& r = in_.front();
-  if (tips_)
-    tips_->begin_step(s_, fingertip_targets(r, now), integ_.config().dt);
-  else
-    kernel_->apply(r, s_, integ_);
-  integ_.step(s_);
+  {
+    const auto awake = integ_.keep_helper_awake();  // it wakes during the contact search
+    if (tips_)
+      tips_->begin_step(s_, fingertip_targets(r, now), integ_.config().dt);
+    else
+      kernel_->apply(r, s_, integ_);
+    integ_.step(s_);
+  }
   if (tips_) tips_->end_step(s_);
   if (response_on_) hand_over_response();
   ++steps_;

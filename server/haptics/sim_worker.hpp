@@ -69,7 +69,6 @@ class SimWorker {
   std::array<FingerTarget, kMaxFingers> fingertip_targets(const HapticReport& r, double now) const;
   void mark_near(const HapticReport& r);
   void mark_patch_candidates(const HapticReport& r, ClothSnapshot& snap);
-  void vertex_normals();
   void hand_over_response();
 
   const cloth::ClothModel& model_;
@@ -86,7 +85,6 @@ class SimWorker {
   std::unique_ptr<KernelCoupling> kernel_;
   bool response_on_ = false;
   std::vector<cloth::Mat3> response_;
-  std::vector<Vec3> normals_;
   ClothSnapshot mine_;
   Histogram step_us_;
   std::uint64_t steps_ = 0;
