@@ -1,7 +1,7 @@
 // The element pass of eq. 9 on lanes: eqs. 3-7 and each element's terms of the system for
 // kLanes elements at once, in structure-of-arrays form, so that every operation of the element
 // algebra is one vector instruction for all of them. The integrator scatters the terms into its
-// matrix rows (Integrator::assemble_elements).
+// matrix rows (Integrator::assemble_cloth).
 //
 // Why lanes: the element algebra (four fibre lengths, three material laws, the factored
 // Jacobian and its nine system blocks) is a long chain of dependent scalar operations. One

@@ -29,11 +29,12 @@ inline void add_block(double* val, int offset, int stride, const Mat3& B) {
 
 }  // namespace
 
-// One pass over the elements for eq. 9, kLanes elements at a time (element_lanes.hpp): forces,
+// One pass over the cloth for eq. 9: the elements kLanes at a time (element_lanes.hpp): forces,
 // the factored Jacobians, the system blocks alpha^2 h^2 H_kl + alpha h C_kl scattered into the
-// CSR values, and the right-hand side h (F - alpha h H v). Returns the elastic energy.
+// CSR values, and the right-hand side h (F - alpha h H v); and the vertices' own terms
+// (vertex_terms). Returns the cloth's energies at the start of the step.
 template <bool kViscous, bool kSpd>
-double Integrator::assemble_elements(const ClothState& s, double h) {
+Integrator::ClothEnergy Integrator::assemble_cloth(const ClothState& s, double h) {
   const StepFactors factors{h, alpha_};
   const auto pass = [&](const std::vector<ElementGroup>& groups) {
     ElementTerms terms;  // 4 kB on the stack of whichever thread runs the pass
@@ -46,20 +47,60 @@ double Integrator::assemble_elements(const ClothState& s, double h) {
   };
   if (!pool_) {
     std::memset(A_.val.data(), 0, sizeof(double) * A_.val.size());
-    return pass(groups_);
+    const double elastic = pass(groups_);
+    ClothEnergy e = vertex_terms(s, h, part_free_.back());
+    e.elastic = elastic;
+    return e;
   }
   // Two threads: the parts at once (disjoint rows), then the separators (groups_); the energy
-  // summed in the same order whichever thread took a part. Each part's rows are cleared by the
-  // thread that assembles them (zero_spans_), so they are in its core's cache, not the caller's.
+  // summed in the same order whichever thread took a part. Each part's rows are cleared, and
+  // its vertices' terms added, by the thread that assembles its elements, so that they are in
+  // its core's cache (zero_spans_, part_free_); the caller takes the rest's first.
   clear_rows(zero_spans_.back());
+  ClothEnergy e = vertex_terms(s, h, part_free_.back());
   auto part = [&](int p) {
     clear_rows(zero_spans_[p]);
-    part_energy_[p] = pass(part_groups_[p]);
+    const double elastic = pass(part_groups_[p]);
+    part_energy_[p] = vertex_terms(s, h, part_free_[p]);
+    part_energy_[p].elastic = elastic;
   };
   pool_->run(static_cast<int>(part_groups_.size()), part);
-  double e_el = 0.0;
-  for (double e : part_energy_) e_el += e;
-  return e_el + pass(groups_);
+  for (const ClothEnergy& pe : part_energy_) {
+    e.elastic += pe.elastic;
+    e.kinetic += pe.kinetic;
+    e.gravity += pe.gravity;
+  }
+  e.elastic += pass(groups_);
+  return e;
+}
+
+// Eq. 9's terms of the free vertices `free` (free indices): the lumped mass M and air damping
+// on their diagonal blocks, h (M g - c v + f_ext) on their right-hand sides, and the external
+// forces' stiffness where it is on. Returns their kinetic and gravitational energy.
+Integrator::ClothEnergy Integrator::vertex_terms(const ClothState& s, double h, const std::vector<int>& free) {
+  const double ah = alpha_ * h;
+  const double cair = cfg_.air_damping;
+  ClothEnergy e;
+  for (int f : free) {
+    const int i = model_.free_vertices[f];
+    const double mi = model_.mass[i];
+    const double ci = cair * model_.vertex_area[i];
+    double* dst = A_.val.data() + sys_.diag_offset[f];
+    const int stride = sys_.row_stride[f];
+    for (int r = 0; r < 3; ++r) dst[r * stride + r] += mi + ah * ci;
+    rhs_.segment<3>(3 * f) += h * (mi * cfg_.gravity - ci * s.v[i] + f_ext_[i]);
+    if (external_stiffness_on) {
+      // f_ext(x + dx) ~ f_ext - K dx: K joins H in eq. 9 (alpha^2 h^2 K in the matrix, -alpha h^2 K v
+      // on the right).
+      const Mat3& K = k_ext_[i];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) dst[r * stride + c] += ah * ah * K(r, c);
+      rhs_.segment<3>(3 * f) -= ah * h * (K * s.v[i]);
+    }
+    e.kinetic += 0.5 * mi * s.v[i].squaredNorm();
+    e.gravity -= mi * cfg_.gravity.dot(s.x[i]);
+  }
+  return e;
 }
 
 // A group's terms at its elements' free vertices (pinned ones have no row): the right-hand
@@ -128,7 +169,7 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
     const ElementPartition partition = partition_elements(model_.elements, model_.rest_positions, 4);
     for (const auto& p : partition.parts) part_groups_.push_back(group_elements(model_.elements, p));
     groups_ = group_elements(model_.elements, partition.separators);
-    part_energy_.assign(part_groups_.size(), 0.0);
+    part_energy_.assign(part_groups_.size(), ClothEnergy{});
     plan_clearing(partition);
     pool_ = std::make_unique<WorkerPool>();
     solver_->use_pool(pool_.get());
@@ -136,6 +177,8 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
     std::vector<int> all(model_.num_triangles());
     std::iota(all.begin(), all.end(), 0);
     groups_ = group_elements(model_.elements, all);
+    part_free_.assign(1, std::vector<int>(model_.num_free()));
+    std::iota(part_free_[0].begin(), part_free_[0].end(), 0);
   }
   A_ = sys_.csr;
   proxies_.assign(cfg_.proxies, ProxyNode{});
@@ -188,7 +231,8 @@ void Integrator::clear_rows(const std::vector<std::pair<int, int>>& spans) {
 }
 
 // zero_spans_: for each assembly part, the ranges of A_'s values in the rows its elements reach
-// (no other part's reach them), and last the rest (the rows only separators reach, the proxies').
+// (no other part's reach them), and last the rest (the rows only separators reach, the proxies');
+// part_free_: the free vertices of those rows, by part likewise.
 void Integrator::plan_clearing(const ElementPartition& partition) {
   const SymCsr& A = sys_.csr;
   const int nb = A.n / 3;
@@ -199,6 +243,8 @@ void Integrator::plan_clearing(const ElementPartition& partition) {
       for (int v : model_.elements[t].v)
         if (model_.free_index[v] >= 0) owner[model_.free_index[v]] = p;
   zero_spans_.assign(parts + 1, {});
+  part_free_.assign(parts + 1, {});
+  for (int f = 0; f < model_.num_free(); ++f) part_free_[owner[f] < 0 ? parts : owner[f]].push_back(f);
   for (int br = 0; br < nb; ++br) {
     auto& spans = zero_spans_[owner[br] < 0 ? parts : owner[br]];
     const int begin = A.rowptr[3 * br], end = A.rowptr[3 * br + 3];
@@ -210,35 +256,11 @@ void Integrator::plan_clearing(const ElementPartition& partition) {
 }
 
 bool Integrator::assemble(const ClothState& s, double h, JacobianMode mode) {
-  const double ah = alpha_ * h;
   rhs_.setZero();
   const bool spd = mode == JacobianMode::Spd;
-  const double e_el = viscous_ ? (spd ? assemble_elements<true, true>(s, h)
-                                      : assemble_elements<true, false>(s, h))
-                               : (spd ? assemble_elements<false, true>(s, h)
-                                      : assemble_elements<false, false>(s, h));
-  // Lumped mass, air damping, gravity and external forces on free vertices.
-  double ke = 0.0, eg = 0.0;
-  const double cair = cfg_.air_damping;
-  for (int f = 0; f < model_.num_free(); ++f) {
-    const int i = model_.free_vertices[f];
-    const double mi = model_.mass[i];
-    const double ci = cair * model_.vertex_area[i];
-    double* dst = A_.val.data() + sys_.diag_offset[f];
-    const int stride = sys_.row_stride[f];
-    for (int r = 0; r < 3; ++r) dst[r * stride + r] += mi + ah * ci;
-    rhs_.segment<3>(3 * f) += h * (mi * cfg_.gravity - ci * s.v[i] + f_ext_[i]);
-    if (external_stiffness_on) {
-      // f_ext(x + dx) ~ f_ext - K dx: K joins H in eq. 9 (alpha^2 h^2 K in the matrix, -alpha h^2 K v
-      // on the right).
-      const Mat3& K = k_ext_[i];
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) dst[r * stride + c] += ah * ah * K(r, c);
-      rhs_.segment<3>(3 * f) -= ah * h * (K * s.v[i]);
-    }
-    ke += 0.5 * mi * s.v[i].squaredNorm();
-    eg -= mi * cfg_.gravity.dot(s.x[i]);
-  }
+  const ClothEnergy e = viscous_ ? (spd ? assemble_cloth<true, true>(s, h) : assemble_cloth<true, false>(s, h))
+                                 : (spd ? assemble_cloth<false, true>(s, h) : assemble_cloth<false, false>(s, h));
+  const double ke = e.kinetic, e_el = e.elastic, eg = e.gravity;
   energy_old_ = ke + e_el + eg;
   energy_scale_ = ke + std::abs(e_el) + energy_floor_;
   if (cfg_.proxies > 0) assemble_proxies(s, h);

@@ -194,8 +194,12 @@ class Integrator {
   void mark_spring_rows(const std::vector<PointSpring>& springs);
   void candidate_state(const ClothState& s, double h);
   double contact_work(const ClothState& s) const;
+  struct ClothEnergy {
+    double elastic = 0.0, kinetic = 0.0, gravity = 0.0;  // J
+  };
   template <bool kViscous, bool kSpd>
-  double assemble_elements(const ClothState& s, double h);  // returns the elastic energy
+  ClothEnergy assemble_cloth(const ClothState& s, double h);
+  ClothEnergy vertex_terms(const ClothState& s, double h, const std::vector<int>& free);
   double scatter_terms(const ElementGroup& g, const ElementTerms& terms);
   void plan_clearing(const ElementPartition& partition);
   void clear_rows(const std::vector<std::pair<int, int>>& spans);
@@ -239,12 +243,13 @@ class Integrator {
   double last_h_ = 0.0; // the last (sub)step solved
   std::vector<Eigen::VectorXd> response_;  // proxy_response(): A^-1 e per proxy dof (warm starts)
   Eigen::VectorXd unit_;
-  // The elements in groups of kLanes (assemble_elements): all of them, or with two threads
+  // The elements in groups of kLanes (assemble_cloth): all of them, or with two threads
   // (assembly_threads 2) the parts' and, in groups_, the separators; the parts' energies.
   std::vector<ElementGroup> groups_;
   std::vector<std::vector<ElementGroup>> part_groups_;
-  std::vector<double> part_energy_;
+  std::vector<ClothEnergy> part_energy_;
   std::vector<std::vector<std::pair<int, int>>> zero_spans_;  // plan_clearing
+  std::vector<std::vector<int>> part_free_;  // plan_clearing; on one thread all, as one "rest"
   std::unique_ptr<WorkerPool> pool_;
 };
 
