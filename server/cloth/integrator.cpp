@@ -671,6 +671,7 @@ Integrator::Attempt Integrator::advance(ClothState& s, double h, int depth) {
 StepOutcome Integrator::step(ClothState& s) {
   const auto t0 = Clock::now();
   timing_ = StepTiming{};
+  const std::int64_t wait0 = pool_ ? pool_->caller_wait_ns() : 0;
   if (!state_finite(s)) {
     // Someone handed us a broken state: go back to the start of the last step, at rest.
     ++events_.non_finite;
@@ -715,6 +716,7 @@ StepOutcome Integrator::step(ClothState& s) {
   }
   have_before_ = true;
   s.time = t_start + cfg_.dt;
+  if (pool_) timing_.helper_wait_ms = 1e-6 * static_cast<double>(pool_->caller_wait_ns() - wait0);
   timing_.total_ms = ms_since(t0);
   return out;
 }

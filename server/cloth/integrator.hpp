@@ -105,6 +105,9 @@ class StepContacts {
 
 struct StepTiming {
   double assemble_ms = 0, solve_ms = 0, total_ms = 0;
+  /// Of total_ms, the stepping thread's waits for the helper thread (assembly_threads 2) to
+  /// finish its share of a run.
+  double helper_wait_ms = 0;
   int iterations = 0;  ///< solver iterations summed over substeps
   int substeps = 0;    ///< 1 unless the step was split after a failure
 };

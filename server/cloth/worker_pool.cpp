@@ -1,12 +1,12 @@
 #include "cloth/worker_pool.hpp"
 
+#include <chrono>
+
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
 #endif
 
-#include <chrono>
 namespace hapticloth::cloth {
-double g_wait_us = 0.0;
 
 WorkerPool::WorkerPool() : thread_([this] { helper_loop(); }) {}
 
@@ -53,9 +53,10 @@ void WorkerPool::run_raw(int n, void (*fn)(void*, int), void* ctx) {
   generation_.notify_one();
   work(false);
   // The helper may still be inside its last index: wait for it (a few tens of us at most).
-  const auto w0 = std::chrono::steady_clock::now();
+  if (done_.load(std::memory_order_acquire) == n) return;
+  const auto t0 = std::chrono::steady_clock::now();
   spin_while([&] { return done_.load(std::memory_order_acquire) < n; });
-  g_wait_us += std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - w0).count();
+  caller_wait_ns_ += std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count();
 }
 
 // A new generation with no index to claim: the helper wakes, finds nothing, and (in a burst)

@@ -44,6 +44,10 @@ class WorkerPool {
    private:
     WorkerPool* pool_;
   };
+  /// Time the caller spent waiting at the ends of runs for the helper to finish its last index,
+  /// over the pool's life, in nanoseconds: a helper slowed down (its core taken by another
+  /// thread, or by the host) shows here. Read by the calling thread.
+  std::int64_t caller_wait_ns() const { return caller_wait_ns_; }
   /// Indices the helper took over the pool's life (the rest were the caller's).
   std::uint64_t helper_share() const { return helper_done_.load(std::memory_order_relaxed); }
 
@@ -78,6 +82,7 @@ class WorkerPool {
   std::atomic<bool> stop_{false};
   std::atomic<int> bursts_{0};
   std::atomic<std::uint64_t> helper_done_{0};
+  std::int64_t caller_wait_ns_ = 0;
   std::thread thread_;
 };
 

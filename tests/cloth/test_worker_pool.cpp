@@ -1,10 +1,12 @@
 // The assembly's and the PCG's helper thread (server/cloth/worker_pool): every index once per
 // run, on either thread, run after run; the caller's indices from the front and the helper's
-// from the back; woken by a burst, spinning in it and asleep after it; nothing allocated by a run.
+// from the back; woken by a burst, spinning in it and asleep after it; the caller's waits for the
+// helper counted; nothing allocated by a run.
 #include <gtest/gtest.h>
 
 #include <atomic>
 #include <chrono>
+#include <cstdint>
 #include <ctime>
 #include <thread>
 #include <vector>
@@ -142,4 +144,30 @@ TEST(WorkerPool, ABurstWakesTheHelperBeforeTheFirstRun) {
   EXPECT_GE(busy, 0.05) << "the helper slept on in a burst with no run yet";
   auto fn = [](int) {};
   pool.run(2, fn);  // the empty wake left the pool as it was
+}
+
+// The caller's waits for a slow helper are counted: the helper's index takes 30 ms, the caller's
+// none (it waits, bounded, until the helper has claimed one), so the caller waits about 30 ms;
+// a run whose indices the caller took all itself adds no wait.
+TEST(WorkerPool, TheCallersWaitsForTheHelperAreCounted) {
+  cloth::WorkerPool pool;
+  const auto caller = std::this_thread::get_id();
+  std::atomic<bool> helper_in{false};
+  auto fn = [&](int) {
+    if (std::this_thread::get_id() != caller) {
+      helper_in = true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(30));
+      return;
+    }
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+    while (!helper_in && std::chrono::steady_clock::now() < give_up) std::this_thread::yield();
+  };
+  pool.run(2, fn);
+  ASSERT_TRUE(helper_in) << "the helper never took an index";
+  const std::int64_t waited = pool.caller_wait_ns();
+  EXPECT_GE(waited, 20'000'000) << "a 30 ms index of the helper's, waited for";
+  EXPECT_LT(waited, 2'000'000'000);
+  auto quick = [](int) {};
+  pool.run(1, quick);  // one index: the caller's (or the helper's, then waited for briefly)
+  EXPECT_LT(pool.caller_wait_ns() - waited, 20'000'000);
 }
