@@ -3,6 +3,10 @@
 #include <algorithm>
 #include <cmath>
 
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
+
 namespace hapticloth::cloth {
 
 namespace {
@@ -264,6 +268,59 @@ void element_terms(const ElementGroup& g, const Material& mat, const Vec3* X, co
         for (int r = 0; r < 3; ++r)
           blk[3 * c + r] = c1 * P.m[3 * c + r] + c2 * Q.m[3 * c + r] + c3 * W.m[3 * c + r] +
                            c4 * W.m[3 * r + c];
+    }
+}
+
+namespace {
+
+#if defined(__AVX512F__)
+// out[l] = lane l of in[0..7] (the transpose of the 8x8 matrix whose rows are in[j]).
+HC_INLINE void transpose8(const __m512d in[8], __m512d out[8]) {
+  __m512d t[8], u[8];
+  for (int i = 0; i < 4; ++i) {
+    t[2 * i] = _mm512_unpacklo_pd(in[2 * i], in[2 * i + 1]);
+    t[2 * i + 1] = _mm512_unpackhi_pd(in[2 * i], in[2 * i + 1]);
+  }
+  for (int h = 0; h < 2; ++h)  // (t0, t2) and (t1, t3) into u0-u3; (t4, t6), (t5, t7) into u4-u7
+    for (int i = 0; i < 2; ++i) {
+      u[4 * h + i] = _mm512_shuffle_f64x2(t[4 * h + i], t[4 * h + i + 2], 0x88);
+      u[4 * h + i + 2] = _mm512_shuffle_f64x2(t[4 * h + i], t[4 * h + i + 2], 0xdd);
+    }
+  for (int i = 0; i < 4; ++i) {
+    out[i] = _mm512_shuffle_f64x2(u[i], u[i + 4], 0x88);
+    out[i + 4] = _mm512_shuffle_f64x2(u[i], u[i + 4], 0xdd);
+  }
+}
+#endif
+
+// dst[l][j] = src[order[j]][l]: the entries that `order` lists, lane by lane.
+HC_INLINE void to_lanes(const Lanes* src, const int (&order)[9], double (&dst)[kLanes][9]) {
+#if defined(__AVX512F__)
+  static_assert(kLanes == 8, "the transpose is 8x8");
+  __m512d in[8], out[8];
+  for (int j = 0; j < 8; ++j) in[j] = reinterpret_cast<__m512d>(src[order[j]]);
+  transpose8(in, out);
+  for (int l = 0; l < kLanes; ++l) {
+    _mm512_storeu_pd(dst[l], out[l]);
+    dst[l][8] = src[order[8]][l];
+  }
+#else
+  for (int l = 0; l < kLanes; ++l)
+    for (int j = 0; j < 9; ++j) dst[l][j] = src[order[j]][l];
+#endif
+}
+
+}  // namespace
+
+void lane_blocks(const ElementTerms& terms, LaneBlocks& out) {
+  // ElementTerms holds a block column-major (entry 3 c + r): row-major is its transpose's order.
+  static constexpr int kRowMajor[9] = {0, 3, 6, 1, 4, 7, 2, 5, 8};
+  static constexpr int kColumnMajor[9] = {0, 1, 2, 3, 4, 5, 6, 7, 8};
+  for (int k = 0; k < 3; ++k)
+    for (int l = k; l < 3; ++l) {
+      const int p = kPair[k][l];
+      to_lanes(terms.block[p], kRowMajor, out.rows[p]);
+      if (l != k) to_lanes(terms.block[p], kColumnMajor, out.rows_t[p]);
     }
 }
 

@@ -46,6 +46,20 @@ struct ElementTerms {
 };
 inline constexpr int kPair[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
 
+/// A group's blocks lane by lane, each row-major (9 doubles, row r at [3r, 3r + 3)): the rows
+/// that the scatter adds to a block row's values, three contiguous doubles each. `rows[p][l]`
+/// is lane l's block of pair p as ElementTerms holds it (block (k, l) for k <= l); for the
+/// pairs with k < l, `rows_t[p][l]` is its transpose (block (l, k)). The same numbers as
+/// ElementTerms, moved only, so the scatter's sums do not change.
+struct LaneBlocks {
+  alignas(64) double rows[6][kLanes][9];
+  alignas(64) double rows_t[6][kLanes][9];
+};
+
+/// ElementTerms' blocks into LaneBlocks: with AVX-512 an 8x8 transpose of each block's first
+/// eight entries in registers (its ninth, the (2, 2) entry, is copied), else entry by entry.
+void lane_blocks(const ElementTerms& terms, LaneBlocks& out);
+
 struct StepFactors {
   double h;       ///< the (sub)step, s
   double alpha;   ///< implicitness (eq. 8)

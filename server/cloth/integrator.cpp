@@ -8,6 +8,10 @@
 #include <stdexcept>
 #include <string>
 
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+#include <immintrin.h>
+#endif
+
 namespace hapticloth::cloth {
 
 namespace {
@@ -27,6 +31,20 @@ inline void add_block(double* val, int offset, int stride, const Mat3& B) {
     for (int c = 0; c < 3; ++c) val[offset + r * stride + c] += B(r, c);
 }
 
+// Adds a row-major 3x3 block B to the values at `dst` whose rows are `stride` apart: three
+// contiguous doubles a row, one masked vector each with AVX-512 (the fourth value may be another
+// thread's row, so it is neither read nor written).
+inline void add_block_rows(double* dst, int stride, const double* B) {
+  for (int r = 0; r < 3; ++r, dst += stride) {
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+    const __m256d a = _mm256_maskz_loadu_pd(0x7, dst), b = _mm256_maskz_loadu_pd(0x7, B + 3 * r);
+    _mm256_mask_storeu_pd(dst, 0x7, _mm256_add_pd(a, b));
+#else
+    for (int c = 0; c < 3; ++c) dst[c] += B[3 * r + c];
+#endif
+  }
+}
+
 }  // namespace
 
 // One pass over the cloth for eq. 9: the elements kLanes at a time (element_lanes.hpp): forces,
@@ -37,11 +55,13 @@ template <bool kViscous, bool kSpd>
 Integrator::ClothEnergy Integrator::assemble_cloth(const ClothState& s, double h) {
   const StepFactors factors{h, alpha_};
   const auto pass = [&](const std::vector<ElementGroup>& groups) {
-    ElementTerms terms;  // 4 kB on the stack of whichever thread runs the pass
+    ElementTerms terms;  // 4 kB and 7 kB on the stack of whichever thread runs the pass
+    LaneBlocks blocks;
     double energy = 0.0;
     for (const ElementGroup& g : groups) {
       element_terms<kViscous, kSpd>(g, model_.material, s.x.data(), s.v.data(), factors, terms);
-      energy += scatter_terms(g, terms);
+      lane_blocks(terms, blocks);
+      energy += scatter_terms(g, terms, blocks);
     }
     return energy;
   };
@@ -104,9 +124,10 @@ Integrator::ClothEnergy Integrator::vertex_terms(const ClothState& s, double h, 
 }
 
 // A group's terms at its elements' free vertices (pinned ones have no row): the right-hand
-// sides, the blocks (k, l) for k <= l, and (l, k) as their transposes. Returns the group's
-// elastic energy.
-double Integrator::scatter_terms(const ElementGroup& g, const ElementTerms& terms) {
+// sides, the blocks (k, l) for k <= l, and (l, k) as their transposes, row by row
+// (add_block_rows, from lane_blocks: the same sums in the same order as entry by entry).
+// Returns the group's elastic energy.
+double Integrator::scatter_terms(const ElementGroup& g, const ElementTerms& terms, const LaneBlocks& blocks) {
   double* const Aval = A_.val.data();
   double* const rhs = rhs_.data();
   const int* const free_index = model_.free_index.data();
@@ -124,16 +145,9 @@ double Integrator::scatter_terms(const ElementGroup& g, const ElementTerms& term
       if (fk[k] < 0) continue;
       for (int l = k; l < 3; ++l) {
         if (fk[l] < 0) continue;
-        const Lanes* blk = terms.block[kPair[k][l]];
-        double* dst = Aval + off[k * 3 + l];
-        const int sk = sys_.row_stride[fk[k]];
-        for (int r = 0; r < 3; ++r, dst += sk)
-          for (int c = 0; c < 3; ++c) dst[c] += blk[3 * c + r][lane];
-        if (l == k) continue;
-        double* dt = Aval + off[l * 3 + k];
-        const int sl = sys_.row_stride[fk[l]];
-        for (int r = 0; r < 3; ++r, dt += sl)
-          for (int c = 0; c < 3; ++c) dt[c] += blk[3 * r + c][lane];
+        const int p = kPair[k][l];
+        add_block_rows(Aval + off[k * 3 + l], sys_.row_stride[fk[k]], blocks.rows[p][lane]);
+        if (l != k) add_block_rows(Aval + off[l * 3 + k], sys_.row_stride[fk[l]], blocks.rows_t[p][lane]);
       }
     }
   }

@@ -203,7 +203,7 @@ class Integrator {
   template <bool kViscous, bool kSpd>
   ClothEnergy assemble_cloth(const ClothState& s, double h);
   ClothEnergy vertex_terms(const ClothState& s, double h, const std::vector<int>& free);
-  double scatter_terms(const ElementGroup& g, const ElementTerms& terms);
+  double scatter_terms(const ElementGroup& g, const ElementTerms& terms, const LaneBlocks& blocks);
   void plan_clearing(const ElementPartition& partition);
   void clear_rows(const std::vector<std::pair<int, int>>& spans);
   bool state_finite(const ClothState& s) const;

@@ -1,5 +1,6 @@
 // The element pass on lanes (cloth/element_lanes): the material laws on lanes against the scalar
-// law on every branch, the grouping of elements, and a group's terms against evaluate_element.
+// law on every branch, the grouping of elements, a group's terms against evaluate_element, and
+// their blocks moved into rows for the scatter.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -151,5 +152,27 @@ TEST(ElementLanes, TermsEqualTheElementEvaluation) {
           }
         }
       }
+    }
+}
+
+// lane_blocks moves each lane's blocks into rows (an 8x8 transpose in registers with AVX-512):
+// every entry lands where the scatter reads it, row-major, and the transposes of the blocks
+// (k, l), k < l, row-major too. Each entry of the terms is distinct.
+TEST(ElementLanes, LaneBlocksHoldEachLanesBlocksRowByRow) {
+  cloth::ElementTerms terms;
+  for (int p = 0; p < 6; ++p)
+    for (int j = 0; j < 9; ++j)
+      for (int l = 0; l < cloth::kLanes; ++l) terms.block[p][j][l] = 1000.0 * p + 10.0 * j + l;
+  cloth::LaneBlocks out;
+  cloth::lane_blocks(terms, out);
+  for (int k = 0; k < 3; ++k)
+    for (int m = k; m < 3; ++m) {
+      const int p = cloth::kPair[k][m];
+      for (int l = 0; l < cloth::kLanes; ++l)
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) {
+            ASSERT_EQ(out.rows[p][l][3 * r + c], terms.block[p][3 * c + r][l]) << p << " " << l << " " << r << c;
+            if (m != k) ASSERT_EQ(out.rows_t[p][l][3 * r + c], terms.block[p][3 * r + c][l]) << p << " " << l;
+          }
     }
 }
