@@ -233,6 +233,7 @@ void Session::realtime_wind_down(double t_start, double period) {
 SessionReport Session::report() const {
   SessionReport r = r_;
   r.sim_step_us = sim_->step_us();
+  r.sim_helper_wait_us = sim_->helper_wait_us();
   r.sim_steps = sim_->steps();
   r.contact_ticks = loop_->contact_ticks();
   r.narrow_phase_skipped = loop_->narrow_phase_skipped();
@@ -264,6 +265,11 @@ std::string SessionReport::to_text() const {
   if (haptic.ticks > 0 && haptic.period_error_us.count() > 0) h("period error     ", haptic.period_error_us);
   if (haptic.compute_us.count() > 0) h("tick compute     ", haptic.compute_us);
   h("sim step         ", sim_step_us);
+  if (sim_helper_wait_us.max() > 0.0) {
+    h("  helper wait    ", sim_helper_wait_us);
+    os << "  (steps waiting over 100 us: " << std::setprecision(3) << sim_helper_wait_us.fraction_at_least(100.0)
+       << ")\n" << std::setprecision(1);
+  }
   os << "sim steps        " << sim_steps << " (" << std::setprecision(3) << sim_time << " s)\n";
   os << "contact ticks    " << contact_ticks << " (slipping " << slip_ticks << "), max force "
      << max_force << " N\n";
@@ -294,6 +300,8 @@ std::string SessionReport::to_json() const {
   j["period_error_us"] = h(haptic.period_error_us);
   j["compute_us"] = h(haptic.compute_us);
   j["sim_step_us"] = h(sim_step_us);
+  j["sim_helper_wait_us"] = h(sim_helper_wait_us);
+  j["sim_helper_wait_us"]["steps_over_100us"] = sim_helper_wait_us.fraction_at_least(100.0);
   j["sim_steps"] = sim_steps;
   j["contact_ticks"] = contact_ticks;
   j["slip_ticks"] = slip_ticks;

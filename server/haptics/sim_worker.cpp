@@ -178,6 +178,7 @@ void SimWorker::step(double now) {
   ++steps_;
   publish(now);
   step_us_.add(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+  helper_wait_us_.add(1e3 * integ_.last_timing().helper_wait_ms);
 }
 
 }  // namespace hapticloth::haptics

@@ -31,6 +31,13 @@ class Histogram {
     }
     return max_;
   }
+  /// Fraction of the values at `us` or above (to the 1 us bin).
+  double fraction_at_least(double us) const {
+    if (n_ == 0) return 0.0;
+    std::uint64_t above = 0;
+    for (int b = us <= 0 ? 0 : (us >= kBins - 1 ? kBins - 1 : static_cast<int>(us)); b < kBins; ++b) above += bins_[b];
+    return static_cast<double>(above) / static_cast<double>(n_);
+  }
   void clear() { *this = Histogram{}; }
 
  private:
