@@ -292,7 +292,7 @@ void load_integrator(const TomlFile& f, const toml::table& it, Scene& s) {
   f.only_keys(it, "integrator", {"dt", "alpha", "solver", "jacobian", "pcg_tolerance",
                                  "pcg_max_iterations", "pcg_float_matrix", "pcg_preconditioner", "pcg_ssor_omega",
                                  "max_halvings",
-                                 "explosion_ratio", "threads"});
+                                 "explosion_ratio", "threads", "matrix_refresh"});
   auto& c = s.integrator;
   c.dt = f.number(it, "integrator", "dt", c.dt);
   if (!(c.dt > 0.0)) f.fail(it.get("dt"), "integrator.dt", "must be > 0 (s)");
@@ -332,6 +332,10 @@ void load_integrator(const TomlFile& f, const toml::table& it, Scene& s) {
   c.assembly_threads = static_cast<int>(f.integer(it, "integrator", "threads", c.assembly_threads));
   if (c.assembly_threads < 1 || c.assembly_threads > 2)
     f.fail(it.get("threads"), "integrator.threads", "must be 1 or 2 (threads of the element assembly)");
+  c.matrix_refresh = f.number(it, "integrator", "matrix_refresh", c.matrix_refresh);
+  if (!(c.matrix_refresh >= 0.0 && c.matrix_refresh < 1.0))
+    f.fail(it.get("matrix_refresh"), "integrator.matrix_refresh",
+           "must be in [0, 1) (an element's change that forms its blocks anew; 0: every step)");
 }
 
 }  // namespace

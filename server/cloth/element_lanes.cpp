@@ -258,16 +258,30 @@ void element_terms(const ElementGroup& g, const Material& mat, const Vec3* X, co
     add_rank1(Q, c3, f.vb);
     add_outer(W, c3, f.va, f.vb);
   }
-  // Block (k, l) = ru_k ru_l Ps + rv_k rv_l Qs + ru_k rv_l Ws + rv_k ru_l Ws^T.
+  for (int r = 0, i = 0; r < 3; ++r)
+    for (int c = r; c < 3; ++c, ++i) {
+      out.factor[kFactorP + i] = P.m[3 * c + r];
+      out.factor[kFactorQ + i] = Q.m[3 * c + r];
+    }
+  for (int i = 0; i < 9; ++i) out.factor[kFactorW + i] = W.m[i];
+}
+
+void system_blocks(const ElementGroup& g, const Lanes* factor, Lanes (&block)[6][9]) {
+  // The symmetric factors' entry (r, c) from their upper entries.
+  static constexpr int kUpper[9] = {0, 1, 2, 1, 3, 4, 2, 4, 5};
+  const Lanes* P = factor + kFactorP;
+  const Lanes* Q = factor + kFactorQ;
+  const Lanes* W = factor + kFactorW;
+  // Block (k, l) = ru_k ru_l P + rv_k rv_l Q + ru_k rv_l W + rv_k ru_l W^T.
   for (int k = 0; k < 3; ++k)
     for (int l = k; l < 3; ++l) {
       const Lanes c1 = g.ru[k] * g.ru[l], c2 = g.rv[k] * g.rv[l];
       const Lanes c3 = g.ru[k] * g.rv[l], c4 = g.rv[k] * g.ru[l];
-      Lanes* blk = out.block[kPair[k][l]];
+      Lanes* blk = block[kPair[k][l]];
       for (int c = 0; c < 3; ++c)
         for (int r = 0; r < 3; ++r)
-          blk[3 * c + r] = c1 * P.m[3 * c + r] + c2 * Q.m[3 * c + r] + c3 * W.m[3 * c + r] +
-                           c4 * W.m[3 * r + c];
+          blk[3 * c + r] = c1 * P[kUpper[3 * c + r]] + c2 * Q[kUpper[3 * c + r]] +
+                           c3 * W[3 * c + r] + c4 * W[3 * r + c];
     }
 }
 

@@ -36,13 +36,21 @@ struct ElementGroup {
 std::vector<ElementGroup> group_elements(const std::vector<ElementRest>& elements,
                                          const std::vector<int>& order);
 
+/// The factored system Jacobian of an element, alpha^2 h^2 (P, Q, W) + alpha h (Pc, Qc, Wc)
+/// (element_terms): the symmetric P and Q by their upper entries (00, 01, 02, 11, 12, 22), then
+/// W whole, column-major. Every system block is linear in these (system_blocks), which is what
+/// lets a kept matrix take an element's change as the blocks of its factors' difference.
+inline constexpr int kFactors = 21;
+inline constexpr int kFactorP = 0, kFactorQ = 6, kFactorW = 12;
+
 /// One group's terms of eq. 9, lane by lane: the right-hand side h (F_k - alpha h (H v)_k) of
-/// each corner k, and the blocks alpha^2 h^2 H_kl + alpha h C_kl for k <= l (pair index
-/// kPair[k][l]; (l, k) is the transpose), column-major.
+/// each corner k, the factored Jacobian, and (system_blocks) the blocks alpha^2 h^2 H_kl +
+/// alpha h C_kl for k <= l (pair index kPair[k][l]; (l, k) is the transpose), column-major.
 struct ElementTerms {
-  Lanes rhs[3][3];     ///< [corner][component]
-  Lanes block[6][9];   ///< [pair][3 * column + row]
-  Lanes energy;        ///< A (Psi_uu + Psi_vv + Psi_uv), J
+  Lanes rhs[3][3];          ///< [corner][component]
+  Lanes factor[kFactors];   ///< see kFactors
+  Lanes block[6][9];        ///< [pair][3 * column + row]
+  Lanes energy;             ///< A (Psi_uu + Psi_vv + Psi_uv), J
 };
 inline constexpr int kPair[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
 
@@ -65,13 +73,19 @@ struct StepFactors {
   double alpha;   ///< implicitness (eq. 8)
 };
 
-/// The terms of every element of `g` at positions X and velocities V (whole-mesh arrays).
+/// The right-hand sides, factored Jacobians and energies of every element of `g` at positions
+/// X and velocities V (whole-mesh arrays); not the blocks (system_blocks).
 /// kViscous: the strain-rate terms (eq. 6); kSpd: the Jacobian's negative parts clamped
 /// (JacobianMode::Spd). Same algebra as evaluate_element, which the finite-difference tests
 /// check (test_integrator's FusedAssembly holds the two together).
 template <bool kViscous, bool kSpd>
 void element_terms(const ElementGroup& g, const Material& mat, const Vec3* X, const Vec3* V,
                    StepFactors f, ElementTerms& out);
+
+/// The system blocks of factored Jacobians `factor` (kFactors lanes, as ElementTerms holds
+/// them) for the corners of `g`: block (k, l) = ru_k ru_l P + rv_k rv_l Q + ru_k rv_l W +
+/// rv_k ru_l W^T, into `block` as ElementTerms holds it.
+void system_blocks(const ElementGroup& g, const Lanes* factor, Lanes (&block)[6][9]);
 
 /// A material law on lanes: Psi, sigma and d sigma / d eps of StrainStressCurve::evaluate_all.
 void evaluate_lanes(const StrainStressCurve& c, Lanes eps, Lanes& psi, Lanes& sigma,

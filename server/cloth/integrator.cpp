@@ -50,25 +50,41 @@ inline void add_block_rows(double* dst, int stride, const double* B) {
 // One pass over the cloth for eq. 9: the elements kLanes at a time (element_lanes.hpp): forces,
 // the factored Jacobians, the system blocks alpha^2 h^2 H_kl + alpha h C_kl scattered into the
 // CSR values, and the right-hand side h (F - alpha h H v); and the vertices' own terms
-// (vertex_terms). Returns the cloth's energies at the start of the step.
+// (vertex_terms). `keep`: the matrix in hand is kept, and only the blocks of the elements whose
+// factors moved are added, as the blocks of the factors' change (KeptMatrix). Returns the
+// cloth's energies at the start of the step.
 template <bool kViscous, bool kSpd>
-Integrator::ClothEnergy Integrator::assemble_cloth(const ClothState& s, double h) {
+Integrator::ClothEnergy Integrator::assemble_cloth(const ClothState& s, double h, bool keep) {
   const StepFactors factors{h, alpha_};
-  const auto pass = [&](const std::vector<ElementGroup>& groups) {
-    ElementTerms terms;  // 4 kB and 7 kB on the stack of whichever thread runs the pass
+  // Part `part`'s groups (the last part: groups_, the caller's alone).
+  const auto pass = [&](const std::vector<ElementGroup>& groups, int part) {
+    ElementTerms terms;  // 5 kB and 7 kB on the stack of whichever thread runs the pass
     LaneBlocks blocks;
     double energy = 0.0;
-    for (const ElementGroup& g : groups) {
+    int refreshed = 0;
+    for (int i = 0; i < static_cast<int>(groups.size()); ++i) {
+      const ElementGroup& g = groups[i];
       element_terms<kViscous, kSpd>(g, model_.material, s.x.data(), s.v.data(), factors, terms);
-      lane_blocks(terms, blocks);
-      energy += scatter_terms(g, terms, blocks);
+      unsigned lanes = (1u << g.count) - 1;
+      if (keep)
+        lanes = kept_->take_changes(part, i, g.count, terms);
+      else
+        kept_->keep_factors(part, i, terms);
+      if (lanes) {
+        system_blocks(g, terms.factor, terms.block);
+        lane_blocks(terms, blocks);
+      }
+      energy += scatter_terms(g, terms, blocks, lanes, keep ? part : -1);
+      refreshed += __builtin_popcount(lanes);
     }
+    part_refreshed_[part] = refreshed;
     return energy;
   };
+  const int rest = static_cast<int>(part_free_.size()) - 1;
   if (!pool_) {
-    std::memset(A_.val.data(), 0, sizeof(double) * A_.val.size());
-    const double elastic = pass(groups_);
-    ClothEnergy e = vertex_terms(s, h, part_free_.back());
+    if (!keep) std::memset(A_.val.data(), 0, sizeof(double) * A_.val.size());
+    const double elastic = pass(groups_, rest);
+    ClothEnergy e = vertex_terms(s, h, rest, keep);
     e.elastic = elastic;
     return e;
   }
@@ -76,12 +92,12 @@ Integrator::ClothEnergy Integrator::assemble_cloth(const ClothState& s, double h
   // summed in the same order whichever thread took a part. Each part's rows are cleared, and
   // its vertices' terms added, by the thread that assembles its elements, so that they are in
   // its core's cache (zero_spans_, part_free_); the caller takes the rest's first.
-  clear_rows(zero_spans_.back());
-  ClothEnergy e = vertex_terms(s, h, part_free_.back());
+  if (!keep) clear_rows(zero_spans_.back());
+  ClothEnergy e = vertex_terms(s, h, rest, keep);
   auto part = [&](int p) {
-    clear_rows(zero_spans_[p]);
-    const double elastic = pass(part_groups_[p]);
-    part_energy_[p] = vertex_terms(s, h, part_free_[p]);
+    if (!keep) clear_rows(zero_spans_[p]);
+    const double elastic = pass(part_groups_[p], p);
+    part_energy_[p] = vertex_terms(s, h, p, keep);
     part_energy_[p].elastic = elastic;
   };
   pool_->run(static_cast<int>(part_groups_.size()), part);
@@ -90,32 +106,43 @@ Integrator::ClothEnergy Integrator::assemble_cloth(const ClothState& s, double h
     e.kinetic += pe.kinetic;
     e.gravity += pe.gravity;
   }
-  e.elastic += pass(groups_);
+  e.elastic += pass(groups_, rest);
   return e;
 }
 
-// Eq. 9's terms of the free vertices `free` (free indices): the lumped mass M and air damping
-// on their diagonal blocks, h (M g - c v + f_ext) on their right-hand sides, and the external
-// forces' stiffness where it is on. Returns their kinetic and gravitational energy.
-Integrator::ClothEnergy Integrator::vertex_terms(const ClothState& s, double h, const std::vector<int>& free) {
+// Eq. 9's terms of the free vertices of assembly part `part` (part_free_): the lumped mass M
+// and air damping on their diagonal blocks, h (M g - c v + f_ext) on their right-hand sides, and
+// the external forces' stiffness where it is on. A kept matrix (`keep`) holds the mass and
+// damping already, and takes only the external stiffness's change. Returns their kinetic and
+// gravitational energy.
+Integrator::ClothEnergy Integrator::vertex_terms(const ClothState& s, double h, int part, bool keep) {
   const double ah = alpha_ * h;
   const double cair = cfg_.air_damping;
+  // f_ext(x + dx) ~ f_ext - K dx: K joins H in eq. 9 (alpha^2 h^2 K in the matrix, -alpha h^2 K v
+  // on the right).
+  const bool stiffness_terms = external_stiffness_on || (keep && k_ext_held_);
   ClothEnergy e;
-  for (int f : free) {
+  for (int f : part_free_[part]) {
     const int i = model_.free_vertices[f];
     const double mi = model_.mass[i];
     const double ci = cair * model_.vertex_area[i];
     double* dst = A_.val.data() + sys_.diag_offset[f];
     const int stride = sys_.row_stride[f];
-    for (int r = 0; r < 3; ++r) dst[r * stride + r] += mi + ah * ci;
+    if (!keep)
+      for (int r = 0; r < 3; ++r) dst[r * stride + r] += mi + ah * ci;
     rhs_.segment<3>(3 * f) += h * (mi * cfg_.gravity - ci * s.v[i] + f_ext_[i]);
-    if (external_stiffness_on) {
-      // f_ext(x + dx) ~ f_ext - K dx: K joins H in eq. 9 (alpha^2 h^2 K in the matrix, -alpha h^2 K v
-      // on the right).
-      const Mat3& K = k_ext_[i];
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) dst[r * stride + c] += ah * ah * K(r, c);
-      rhs_.segment<3>(3 * f) -= ah * h * (K * s.v[i]);
+    if (external_stiffness_on) rhs_.segment<3>(3 * f) -= ah * h * (k_ext_[i] * s.v[i]);
+    if (stiffness_terms) {
+      // What A_ holds of it: k_ext_in_matrix_ if it holds any (a kept matrix), else nothing.
+      const Mat3 K = external_stiffness_on ? k_ext_[i] : Mat3::Zero();
+      Mat3& held = k_ext_in_matrix_[i];
+      const Mat3 dK = keep && k_ext_held_ ? Mat3(K - held) : K;
+      held = K;
+      if (!dK.isZero(0.0)) {
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) dst[r * stride + c] += ah * ah * dK(r, c);
+        if (keep) kept_->mark(part, f);
+      }
     }
     e.kinetic += 0.5 * mi * s.v[i].squaredNorm();
     e.gravity -= mi * cfg_.gravity.dot(s.x[i]);
@@ -125,9 +152,11 @@ Integrator::ClothEnergy Integrator::vertex_terms(const ClothState& s, double h, 
 
 // A group's terms at its elements' free vertices (pinned ones have no row): the right-hand
 // sides, the blocks (k, l) for k <= l, and (l, k) as their transposes, row by row
-// (add_block_rows, from lane_blocks: the same sums in the same order as entry by entry).
-// Returns the group's elastic energy.
-double Integrator::scatter_terms(const ElementGroup& g, const ElementTerms& terms, const LaneBlocks& blocks) {
+// (add_block_rows, from lane_blocks: the same sums in the same order as entry by entry); the
+// blocks of the lanes in `lanes` only (bit l: lane l), whose rows a kept matrix marks changed
+// (mark_part >= 0: the assembly part whose thread runs it). Returns the group's elastic energy.
+double Integrator::scatter_terms(const ElementGroup& g, const ElementTerms& terms, const LaneBlocks& blocks,
+                                 unsigned lanes, int mark_part) {
   double* const Aval = A_.val.data();
   double* const rhs = rhs_.data();
   const int* const free_index = model_.free_index.data();
@@ -140,9 +169,11 @@ double Integrator::scatter_terms(const ElementGroup& g, const ElementTerms& term
       if (fk[k] < 0) continue;
       for (int r = 0; r < 3; ++r) rhs[3 * fk[k] + r] += terms.rhs[k][r][lane];
     }
+    if (!(lanes >> lane & 1u)) continue;
     const auto& off = sys_.block_offset[g.t[lane]];
     for (int k = 0; k < 3; ++k) {
       if (fk[k] < 0) continue;
+      if (mark_part >= 0) kept_->mark(mark_part, fk[k]);
       for (int l = k; l < 3; ++l) {
         if (fk[l] < 0) continue;
         const int p = kPair[k][l];
@@ -165,6 +196,7 @@ void IntegratorConfig::validate() const {
   if (max_halvings < 0 || max_halvings > 20) bad("max_halvings", "must be in [0, 20]");
   if (assembly_threads < 1 || assembly_threads > 2) bad("threads", "must be 1 or 2");
   if (!(explosion_ratio > 0.0)) bad("explosion_ratio", "must be > 0");
+  if (!(matrix_refresh >= 0.0 && matrix_refresh < 1.0)) bad("matrix_refresh", "must be in [0, 1)");
 }
 
 Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
@@ -194,6 +226,11 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
     part_free_.assign(1, std::vector<int>(model_.num_free()));
     std::iota(part_free_[0].begin(), part_free_[0].end(), 0);
   }
+  std::vector<int> group_counts;
+  for (const auto& groups : part_groups_) group_counts.push_back(static_cast<int>(groups.size()));
+  group_counts.push_back(static_cast<int>(groups_.size()));
+  kept_ = std::make_unique<KeptMatrix>(cfg_.matrix_refresh, group_counts, sys_.csr.n / 3);
+  part_refreshed_.assign(group_counts.size(), 0);
   A_ = sys_.csr;
   proxies_.assign(cfg_.proxies, ProxyNode{});
   const int n = A_.n;
@@ -212,6 +249,7 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
   const int nv = model_.num_vertices();
   f_ext_.assign(nv, Vec3::Zero());
   k_ext_.assign(nv, Mat3::Zero());
+  k_ext_in_matrix_.assign(nv, Mat3::Zero());
   xn_.assign(nv, Vec3::Zero());
   vn_.assign(nv, Vec3::Zero());
   x_start_.assign(nv, Vec3::Zero());
@@ -269,16 +307,74 @@ void Integrator::plan_clearing(const ElementPartition& partition) {
   }
 }
 
+// Eq. 9 at state s for the (sub)step h: the matrix formed whole, or kept from the last
+// assembly (KeptMatrix::keeps: the same h, alpha and mode) with the changes of the elements
+// that moved, the external stiffness and the proxies' springs.
 bool Integrator::assemble(const ClothState& s, double h, JacobianMode mode) {
   rhs_.setZero();
+  const bool keep = kept_->keeps(h, alpha_, mode);
+  if (keep) take_out_springs(h);
   const bool spd = mode == JacobianMode::Spd;
-  const ClothEnergy e = viscous_ ? (spd ? assemble_cloth<true, true>(s, h) : assemble_cloth<true, false>(s, h))
-                                 : (spd ? assemble_cloth<false, true>(s, h) : assemble_cloth<false, false>(s, h));
+  const ClothEnergy e = viscous_ ? (spd ? assemble_cloth<true, true>(s, h, keep) : assemble_cloth<true, false>(s, h, keep))
+                                 : (spd ? assemble_cloth<false, true>(s, h, keep) : assemble_cloth<false, false>(s, h, keep));
+  for (int n : part_refreshed_) timing_.refreshed_elements += n;
+  timing_.whole_assemblies += !keep;
   const double ke = e.kinetic, e_el = e.elastic, eg = e.gravity;
   energy_old_ = ke + e_el + eg;
   energy_scale_ = ke + std::abs(e_el) + energy_floor_;
-  if (cfg_.proxies > 0) assemble_proxies(s, h);
-  return rhs_.allFinite() && std::isfinite(energy_old_);
+  if (cfg_.proxies > 0) {
+    assemble_proxies(s, h);
+    if (keep) mark_proxy_rows();
+  }
+  k_ext_held_ = external_stiffness_on;
+  springs_in_matrix_.assign(springs_.begin(), springs_.end());
+  assembled_kept_ = keep;
+  if (!keep) solver_synced_ = false;  // the solver's copy is of another matrix
+  const bool ok = rhs_.allFinite() && std::isfinite(energy_old_);
+  if (ok)
+    kept_->assembled(h, alpha_, mode, !keep);
+  else
+    kept_->invalidate();
+  return ok;
+}
+
+// A kept matrix holds the last assembly's proxies and point springs (springs_in_matrix_): their
+// blocks in the proxies' rows and columns are set to zero (only they write there, so no rounding
+// is left behind for the PCG's hub blocks to keep), and their corner blocks are taken back out
+// of the cloth's. The rows they reach are marked changed.
+void Integrator::take_out_springs(double h) {
+  const double ah = alpha_ * h, aahh = ah * ah;
+  const int nf = sys_.free_nodes, rest = static_cast<int>(part_free_.size()) - 1;
+  double* const val = A_.val.data();
+  const auto set_zero = [&](int offset, int stride) {
+    for (int r = 0; r < 3; ++r) std::fill_n(val + offset + r * stride, 3, 0.0);
+  };
+  for (int j = 0; j < cfg_.proxies; ++j) set_zero(sys_.diag_offset[nf + j], sys_.row_stride[nf + j]);
+  for (const PointSpring& sp : springs_in_matrix_) {
+    const auto& e = model_.elements[sp.tri];
+    const int node = nf + sp.proxy;
+    const Mat3 Kh = -aahh * sp.K;
+    const auto& off = sys_.block_offset[sp.tri];
+    for (int k = 0; k < 3; ++k) {
+      const int fk = model_.free_index[e.v[k]];
+      if (fk < 0) continue;
+      kept_->mark(rest, fk);
+      set_zero(A_.rowptr[3 * fk] + sys_.row_stride[fk] - 3 * (cfg_.proxies - sp.proxy), sys_.row_stride[fk]);
+      set_zero(A_.rowptr[3 * node] + 3 * fk, sys_.row_stride[node]);
+      for (int l = 0; l < 3; ++l)
+        if (off[k * 3 + l] >= 0) add_block(val, off[k * 3 + l], sys_.row_stride[fk], sp.b[k] * sp.b[l] * Kh);
+    }
+  }
+}
+
+// The rows a kept matrix's proxies and springs changed (assemble_proxies): the proxies' and the
+// springs' free corners.
+void Integrator::mark_proxy_rows() {
+  const int nf = sys_.free_nodes, rest = static_cast<int>(part_free_.size()) - 1;
+  for (int j = 0; j < cfg_.proxies; ++j) kept_->mark(rest, nf + j);
+  for (const PointSpring& sp : springs_)
+    for (int v : model_.elements[sp.tri].v)
+      if (model_.free_index[v] >= 0) kept_->mark(rest, model_.free_index[v]);
 }
 
 // The proxies and point springs in eq. 9. A proxy is a node without mass or velocity of its own
@@ -383,6 +479,7 @@ void Integrator::candidate_state(const ClothState& s, double h) {
 }
 
 const SymCsr& Integrator::system_matrix(const ClothState& s, double h, JacobianMode mode) {
+  kept_->invalidate();  // formed whole
   assemble(s, h, mode);
   return A_;
 }
@@ -468,7 +565,15 @@ bool Integrator::solve(const ClothState& s, double h) {
   guess_ = 2.0 * dv_ - dv_prev_;
   dv_prev_ = dv_;
   dv_ = guess_;
-  SolveStatus st = solver_->solve(A_, rhs_.data(), dv_.data());
+  // A kept matrix whose changes reach few rows: the solver reloads those (a quarter of them is
+  // about where reloading row by row costs what the whole copy on the pool's threads does).
+  const std::vector<int>& changed = kept_->take_changed_rows();
+  const bool reload_changed = assembled_kept_ && solver_synced_ && 4 * changed.size() <= static_cast<size_t>(A_.n / 3);
+  SolveStatus st = reload_changed ? solver_->solve_changed(A_, changed.data(), static_cast<int>(changed.size()),
+                                                           rhs_.data(), dv_.data())
+                                  : solver_->solve(A_, rhs_.data(), dv_.data());
+  if (reload_changed) timing_.changed_rows = static_cast<int>(changed.size());
+  solver_synced_ = st == SolveStatus::Ok;
   timing_.iterations += solver_->iterations();
   if (st == SolveStatus::NotPositiveDefinite && cfg_.jacobian == JacobianMode::Exact) {
     ++events_.jacobian_fallbacks;
@@ -476,7 +581,9 @@ bool Integrator::solve(const ClothState& s, double h) {
     assemble(s, h, JacobianMode::Spd);
     timing_.assemble_ms += ms_since(t2);
     dv_.setZero();
+    kept_->take_changed_rows();
     st = solver_->solve(A_, rhs_.data(), dv_.data());
+    solver_synced_ = st == SolveStatus::Ok;
     timing_.iterations += solver_->iterations();
   }
   timing_.solve_ms += ms_since(t1);
@@ -515,6 +622,7 @@ bool Integrator::revise_contacts(const ClothState& s, double h) {
     const auto t3 = Clock::now();
     add_springs(s, h, springs_solved_, -1.0);
     add_springs(s, h, springs_, 1.0);
+    springs_in_matrix_.assign(springs_.begin(), springs_.end());
     spring_rows_.clear();
     mark_spring_rows(springs_solved_);
     mark_spring_rows(springs_);
@@ -522,6 +630,7 @@ bool Integrator::revise_contacts(const ClothState& s, double h) {
     const SolveStatus st = solver_->solve_changed(A_, spring_rows_.data(),
                                                   static_cast<int>(spring_rows_.size()), rhs_.data(),
                                                   dv_.data());
+    solver_synced_ = st == SolveStatus::Ok;
     timing_.iterations += solver_->iterations();
     timing_.solve_ms += ms_since(t3);
     if (st != SolveStatus::Ok || !dv_.allFinite()) {

@@ -10,6 +10,7 @@
 
 #include "cloth/element_lanes.hpp"
 #include "cloth/element_partition.hpp"
+#include "cloth/kept_matrix.hpp"
 #include "cloth/model.hpp"
 #include "cloth/solver.hpp"
 #include "cloth/worker_pool.hpp"
@@ -30,6 +31,11 @@ struct IntegratorConfig {
   /// Threads of the element assembly and the PCG's sweeps: 1, or 2 (a helper thread shares
   /// them with the stepping thread; meshes under kMinParallelElements stay on one).
   int assembly_threads = 1;
+  /// The matrix is kept from step to step (KeptMatrix): an element's blocks are formed anew when
+  /// its factored Jacobian has moved by more than this fraction of its largest entry since they
+  /// were last formed; 0 forms every block every step. Forces and the right-hand side are exact
+  /// either way.
+  double matrix_refresh = 1e-4;
 
   /// Throws std::invalid_argument naming the offending field.
   void validate() const;
@@ -110,6 +116,13 @@ struct StepTiming {
   double helper_wait_ms = 0;
   int iterations = 0;  ///< solver iterations summed over substeps
   int substeps = 0;    ///< 1 unless the step was split after a failure
+  /// Elements whose blocks were formed anew, summed over the assemblies (all of them in an
+  /// assembly formed whole; IntegratorConfig::matrix_refresh).
+  int refreshed_elements = 0;
+  /// Assemblies that formed the matrix whole (the others kept it).
+  int whole_assemblies = 0;
+  /// Block rows the solver reloaded for a kept matrix's first solve (-1: it loaded them all).
+  int changed_rows = -1;
 };
 
 enum class StepOutcome { Accepted, Restored };
@@ -148,6 +161,7 @@ class Integrator {
   void set_contacts(StepContacts* c) {
     contacts_ = c;
     springs_solved_.reserve(springs_.capacity());
+    springs_in_matrix_.reserve(springs_.capacity());
     released_.reserve(springs_.capacity());
   }
 
@@ -175,6 +189,9 @@ class Integrator {
 
   /// The system matrix of eq. 9 at state s for step h (for tests and analysis).
   const SymCsr& system_matrix(const ClothState& s, double h, JacobianMode mode);
+  /// The matrix of the last step's solves as it stands, formed whole or kept (for tests and
+  /// analysis).
+  const SymCsr& matrix() const { return A_; }
   /// The right-hand side of eq. 9 from the last assembly (free-vertex order, 3 per vertex).
   const Eigen::VectorXd& system_rhs() const { return rhs_; }
 
@@ -201,9 +218,12 @@ class Integrator {
     double elastic = 0.0, kinetic = 0.0, gravity = 0.0;  // J
   };
   template <bool kViscous, bool kSpd>
-  ClothEnergy assemble_cloth(const ClothState& s, double h);
-  ClothEnergy vertex_terms(const ClothState& s, double h, const std::vector<int>& free);
-  double scatter_terms(const ElementGroup& g, const ElementTerms& terms, const LaneBlocks& blocks);
+  ClothEnergy assemble_cloth(const ClothState& s, double h, bool keep);
+  ClothEnergy vertex_terms(const ClothState& s, double h, int part, bool keep);
+  double scatter_terms(const ElementGroup& g, const ElementTerms& terms, const LaneBlocks& blocks,
+                       unsigned lanes, int mark_part);
+  void take_out_springs(double h);
+  void mark_proxy_rows();
   void plan_clearing(const ElementPartition& partition);
   void clear_rows(const std::vector<std::pair<int, int>>& spans);
   bool state_finite(const ClothState& s) const;
@@ -220,6 +240,7 @@ class Integrator {
   SymCsr A_;
   std::vector<ProxyNode> proxies_;
   std::vector<PointSpring> springs_, springs_solved_;  // solved_: the set a re-solve replaces
+  std::vector<PointSpring> springs_in_matrix_;  // the set whose terms A_ holds (KeptMatrix)
   std::vector<int> spring_rows_;         // block rows a re-solve's spring change touches
   std::vector<char> spring_row_marked_;  // per block row: in spring_rows_
   StepContacts* contacts_ = nullptr;
@@ -234,6 +255,13 @@ class Integrator {
   std::vector<PointSpring> released_;  // contacts released by this step's re-solves, not back
   std::vector<Vec3> f_ext_;
   std::vector<Mat3> k_ext_;
+  std::vector<Mat3> k_ext_in_matrix_;  // the external stiffness A_ holds (KeptMatrix)
+  bool k_ext_held_ = false;            // whether A_ holds any
+  // The kept matrix: its factors, and the rows changed since the solver's copy was A_.
+  std::unique_ptr<KeptMatrix> kept_;
+  bool assembled_kept_ = false;  // the last assembly kept the matrix
+  bool solver_synced_ = false;   // the solver's copy is A_ but for the rows kept_ marked
+  std::vector<int> part_refreshed_;  // per assembly part (and the rest): elements formed anew
   std::vector<Vec3> xn_, vn_;              // candidate state of a (sub)step
   std::vector<Vec3> x_start_, v_start_;    // state at the start of step()
   double energy_old_ = 0.0, energy_scale_ = 0.0;

@@ -159,6 +159,7 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
       {"UnknownPreconditioner", kScene + "pcg_preconditioner = \"ilu\"\n", 16,
        {"key 'integrator.pcg_preconditioner'", "\"ssor\" or \"block-jacobi\""}},
       {"OmegaOutOfRange", kScene + "pcg_ssor_omega = 2.0\n", 16, {"key 'integrator.pcg_ssor_omega'", "[1, 2)"}},
+      {"NegativeMatrixRefresh", kScene + "matrix_refresh = -0.1\n", 16, {"key 'integrator.matrix_refresh'", "[0, 1)"}},
       {"UnknownMeshType", with_line(kScene, 5, "type = \"sphere\""), 5, {"key 'mesh.type'", "\"grid\" or \"obj\""}},
       {"ZeroResolution", with_line(kScene, 7, "resolution = [0, 5]"), 7, {"key 'mesh.resolution'", "[1, 2000]"}},
       {"UnknownPinEdge", with_line(kScene, 10, "edges = [\"middle\"]"), 10, {"key 'pins.edges'", "'middle'"}},
@@ -179,6 +180,11 @@ TEST_F(SceneFileTest, PcgPreconditionerKey) {
   EXPECT_EQ(scene(kScene + "pcg_preconditioner = \"ssor\"\n").pcg.preconditioner, PcgPreconditioner::Ssor);
   EXPECT_DOUBLE_EQ(scene(kScene).pcg.ssor_omega, 1.0);
   EXPECT_DOUBLE_EQ(scene(kScene + "pcg_ssor_omega = 1.4\n").pcg.ssor_omega, 1.4);
+}
+
+TEST_F(SceneFileTest, MatrixRefreshKey) {
+  EXPECT_DOUBLE_EQ(scene(kScene).integrator.matrix_refresh, 1e-4);
+  EXPECT_DOUBLE_EQ(scene(kScene + "matrix_refresh = 0\n").integrator.matrix_refresh, 0.0);
 }
 
 TEST_F(SceneFileTest, DeviceClockKey) {

@@ -127,6 +127,7 @@ TEST(ElementLanes, TermsEqualTheElementEvaluation) {
       else
         mode == cloth::JacobianMode::Spd ? cloth::element_terms<false, true>(g, mat, x.data(), v.data(), f, terms)
                                          : cloth::element_terms<false, false>(g, mat, x.data(), v.data(), f, terms);
+      cloth::system_blocks(g, terms.factor, terms.block);
       for (int l = 0; l < kLanes; ++l) {
         const auto& e = elements[l];
         const Vec3* xp[3] = {&x[e.v[0]], &x[e.v[1]], &x[e.v[2]]};

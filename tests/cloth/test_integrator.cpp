@@ -293,6 +293,11 @@ TEST(IntegratorConfig, RejectsBadSettings) {
   c = {};
   c.assembly_threads = 3;
   EXPECT_THROW(c.validate(), std::invalid_argument);
+  for (double refresh : {-1e-4, 1.0, std::nan("")}) {
+    c = {};
+    c.matrix_refresh = refresh;
+    EXPECT_THROW(c.validate(), std::invalid_argument) << refresh;
+  }
 }
 
 // The integrator's fused element pass (forces, factored Jacobians, system blocks and
@@ -517,4 +522,123 @@ TEST(Integrator, ProxyResponseIsTheStepsDerivativeInTheTargets) {
   }
   // Pushing finger 0 into the drum moves finger 1 (on the other side) along: the cloth couples them.
   EXPECT_GT(M[1 * 2 + 0](2, 2), 0.05);
+}
+
+namespace {
+
+// A drum pre-stretched at rest sags under gravity while two proxies push on it through point
+// springs, the springs' set moved between two spots every third step: small, smooth motion with
+// spring terms that come and go, a kept matrix's case. `check(before, after, integ, springs)`
+// runs after each step.
+template <class Check>
+void pinched_drum(int threads, double refresh, const cloth::PcgOptions& pcg, int steps, Check check) {
+  const auto m = drum(test::denim(0.05), 40);
+  cloth::IntegratorConfig cfg;
+  cfg.proxies = 2;
+  cfg.assembly_threads = threads;
+  cfg.matrix_refresh = refresh;
+  cloth::Integrator integ(m, cfg, cloth::make_pcg_solver(pcg));
+  const Vec3 centre = m.rest_positions[m.num_vertices() / 2];
+  std::vector<cloth::PointSpring> sets[2];
+  for (int t = 0; t < m.num_triangles(); ++t)
+    for (int k = 0; k < 2; ++k) {
+      const Vec3 spot = centre + Vec3(k ? 0.03 : -0.03, 0.0, 0.0);
+      if ((m.rest_positions[m.elements[t].v[0]] - spot).norm() > 0.012) continue;
+      cloth::PointSpring sp;
+      sp.tri = t;
+      sp.b[0] = 0.2;
+      sp.b[1] = 0.3;
+      sp.b[2] = 0.5;
+      sp.proxy = t % 2;
+      sp.f = Vec3(0.0, 0.0, -0.02);
+      sp.K = 300.0 * cloth::Mat3::Identity();
+      sets[k].push_back(sp);
+    }
+  ASSERT_FALSE(sets[0].empty());
+  ASSERT_FALSE(sets[1].empty());
+  for (int j = 0; j < 2; ++j) {
+    integ.proxies()[j].stiffness = 400.0;
+    integ.proxies()[j].damping = 0.5;
+    integ.proxies()[j].x = integ.proxies()[j].target = centre;
+  }
+  cloth::ClothState s = cloth::rest_state(m);
+  for (int i = 0; i < m.num_vertices(); ++i) s.x[i] = 1.05 * m.rest_positions[i];
+  for (int k = 0; k < steps; ++k) {
+    integ.point_springs() = sets[k / 3 % 2];
+    const cloth::ClothState before = s;
+    integ.step(s);
+    check(before, s, integ, sets[k / 3 % 2]);
+  }
+}
+
+double largest(const std::vector<double>& v) {
+  double a = 0.0;
+  for (double x : v) a = std::max(a, std::abs(x));
+  return a;
+}
+
+}  // namespace
+
+// A kept matrix (IntegratorConfig::matrix_refresh) is the matrix formed whole at the step's
+// start, with the step's springs and none of the last step's, but for the elements that moved
+// less than the tolerance since their blocks were formed: within it (1e-3) of the largest
+// entry, and to rounding at a tolerance of 1e-12. On one thread and on two, and most steps kept.
+TEST(Integrator, AKeptMatrixIsTheMatrixFormedWholeWithinItsTolerance) {
+  cloth::PcgOptions pcg;
+  pcg.tolerance = 1e-8;
+  for (int threads : {1, 2})
+    for (double refresh : {1e-3, 1e-12}) {
+      int kept = 0, refreshed_some = 0, steps = 0;
+      double worst = 0.0;
+      pinched_drum(threads, refresh, pcg, 30, [&](const cloth::ClothState& before, const cloth::ClothState&,
+                                                  cloth::Integrator& integ,
+                                                  const std::vector<cloth::PointSpring>& springs) {
+        const std::vector<double> held = integ.matrix().val;
+        cloth::IntegratorConfig cfg = integ.config();
+        cfg.matrix_refresh = 0.0;
+        cloth::Integrator whole(integ.model(), cfg, cloth::make_cholmod_solver());
+        whole.proxies() = integ.proxies();
+        whole.point_springs() = springs;
+        const cloth::SymCsr& A = whole.system_matrix(before, cfg.dt, cloth::JacobianMode::Spd);
+        double diff = 0.0;
+        for (size_t k = 0; k < held.size(); ++k) diff = std::max(diff, std::abs(held[k] - A.val[k]));
+        worst = std::max(worst, diff / largest(A.val));
+        ++steps;
+        kept += integ.last_timing().whole_assemblies == 0;
+        refreshed_some += integ.last_timing().refreshed_elements < integ.model().num_triangles();
+      });
+      EXPECT_LE(worst, refresh == 1e-3 ? 2e-3 : 1e-12) << threads << " thread(s), refresh " << refresh;
+      EXPECT_GE(kept, steps - 1) << threads << " thread(s), refresh " << refresh;
+      if (refresh == 1e-3) EXPECT_GE(refreshed_some, steps / 2) << threads << " thread(s)";
+    }
+}
+
+// What the solver solves is the kept matrix: the rows its changes reach are reloaded into the
+// PCG's copy (LinearSolver::solve_changed), so each step's dv leaves a residual against the
+// kept matrix at the PCG's tolerance (1e-10, double copy). Reloads of a few rows happen.
+TEST(Integrator, TheSolverSolvesTheKeptMatrix) {
+  cloth::PcgOptions pcg;
+  pcg.tolerance = 1e-10;
+  for (int threads : {1, 2}) {
+    int reloads = 0;
+    double worst = 0.0;
+    pinched_drum(threads, 1e-3, pcg, 30, [&](const cloth::ClothState& before, const cloth::ClothState& after,
+                                             cloth::Integrator& integ, const std::vector<cloth::PointSpring>&) {
+      const cloth::ClothModel& m = integ.model();
+      const cloth::SymCsr& A = integ.matrix();
+      Eigen::VectorXd dv = Eigen::VectorXd::Zero(A.n), r(A.n);
+      for (int i = 0; i < m.num_vertices(); ++i)  // eq. 9: v_new = v + dv
+        if (m.free_index[i] >= 0) dv.segment<3>(3 * m.free_index[i]) = after.v[i] - before.v[i];
+      const int nf = m.num_free();
+      for (int j = 0; j < 2; ++j)
+        dv.segment<3>(3 * (nf + j)) = integ.proxies()[j].displacement / (integ.config().alpha * integ.config().dt);
+      A.multiply(dv.data(), r.data());
+      r = integ.system_rhs() - r;
+      worst = std::max(worst, r.norm() / integ.system_rhs().norm());
+      const int rows = integ.last_timing().changed_rows;
+      reloads += rows > 0 && rows < A.n / 12;
+    });
+    EXPECT_LE(worst, 1e-9) << threads << " thread(s)";
+    EXPECT_GE(reloads, 10) << threads << " thread(s)";
+  }
 }

@@ -223,6 +223,27 @@ def test_step_pinch_of_a_settled_cloth():
     assert settled["helper_wait_us"] == {"p50": 0.0, "p99": 0.0, "steps_over_100us": 0.0}
 
 
+def test_step_pinch_keeps_its_matrix():
+    """The pinch of a cloth at rest (6 s, the haptic scenes' preroll) keeps its matrix from step to step (integrator.matrix_refresh): a few
+    elements a step are formed anew and the solver reloads a few rows, where --matrix-refresh 0
+    forms every element every step; the pinch is the same (its depth, its contact, its solver
+    iterations)."""
+    kept = bench("step", "--scene", str(SCENE), "--pinch", "--settle", "6", "--steps", "300")
+    whole = bench("step", "--scene", str(SCENE), "--pinch", "--settle", "6", "--steps", "300",
+                  "--matrix-refresh", "0")
+    triangles = kept["triangles"]
+    assert kept["kept_matrix"]["matrix_refresh"] == 1e-4
+    assert kept["kept_matrix"]["elements_formed_per_step"] < 0.05 * triangles
+    assert kept["kept_matrix"]["steps_formed_whole"] < 0.01
+    assert 0 < kept["kept_matrix"]["rows_reloaded_p50"] < 0.1 * triangles
+    assert whole["kept_matrix"]["elements_formed_per_step"] == triangles
+    assert whole["kept_matrix"]["steps_formed_whole"] == 1.0
+    assert abs(kept["max_penetration_mm"] - whole["max_penetration_mm"]) < 0.01 * whole["max_penetration_mm"]
+    assert kept["both_fingers_in_contact"] == whole["both_fingers_in_contact"]
+    assert abs(kept["solver_iterations_per_step"]["mean"] - whole["solver_iterations_per_step"]["mean"]) < \
+        0.1 * whole["solver_iterations_per_step"]["mean"]
+
+
 def test_step_bad_settle():
     def run(*args):
         return subprocess.run([str(program("hapticloth-bench")), "step", "--scene", str(SCENE), *args, "--json"],
@@ -235,7 +256,8 @@ def test_step_bad_settle():
         assert "Traceback" not in r.stderr
 
 
-@pytest.mark.parametrize("flag,value", [("--pcg-omega", "2.5"), ("--pcg-preconditioner", "ilu")])
+@pytest.mark.parametrize("flag,value", [("--pcg-omega", "2.5"), ("--pcg-preconditioner", "ilu"),
+                                        ("--matrix-refresh", "1.5")])
 def test_step_bad_solver_flags(flag, value):
     r = subprocess.run([str(program("hapticloth-bench")), "step", "--scene", str(SCENE), flag, value, "--json"],
                        capture_output=True, text=True, timeout=60)

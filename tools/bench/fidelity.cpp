@@ -195,6 +195,10 @@ json pinch_step(const app::Scene& scene, double seconds, double settle_s) {
   // Where a step's time goes: the solver's iterations (summed over the re-solves) and the
   // integrator's share of the step (the rest is the contact's sampling and FCL).
   haptics::Histogram iterations, integrator_us;
+  // The kept matrix (IntegratorConfig::matrix_refresh): elements formed anew, steps that formed
+  // the matrix whole, and the rows the solver reloaded where it did not.
+  haptics::Histogram rows_reloaded;
+  long refreshed = 0, formed_whole = 0;
   std::uint64_t solves = 0, steps = 0, revisions = 0;
   // Steps by how many solves they took (1, 2, 3, 4 or more), in the squeeze (the first 0.1 s)
   // and in the hold after it: the step's tail comes from the steps solved more than once.
@@ -208,6 +212,9 @@ json pinch_step(const app::Scene& scene, double seconds, double settle_s) {
     const cloth::StepTiming& t = w.integrator().last_timing();
     iterations.add(t.iterations);
     integrator_us.add(1e3 * t.total_ms);
+    refreshed += t.refreshed_elements;
+    formed_whole += t.whole_assemblies > 0;
+    if (t.changed_rows >= 0) rows_reloaded.add(t.changed_rows);
     const std::uint64_t rev = w.integrator().events().contact_revisions;
     const auto solved = std::min<std::uint64_t>(rev - revisions, 3);
     by_solves[ticks > 100][solved]++;
@@ -236,6 +243,11 @@ json pinch_step(const app::Scene& scene, double seconds, double settle_s) {
           {"contact_revisions", rep.contact_revisions},
           {"steps_by_solves", {{"squeeze", by_solves[0]}, {"hold", by_solves[1]}}},
           {"integrator_p50_us_by_solves", by_solves_p50(integrator_us_by_solves)},
+          {"kept_matrix", {{"matrix_refresh", ic.matrix_refresh},
+                           {"elements_formed_per_step", static_cast<double>(refreshed) / std::max<std::uint64_t>(1, steps)},
+                           {"steps_formed_whole", static_cast<double>(formed_whole) / std::max<std::uint64_t>(1, steps)},
+                           {"rows_reloaded_p50", rows_reloaded.count() ? rows_reloaded.quantile(0.5) : 0.0},
+                           {"rows_reloaded_p99", rows_reloaded.count() ? rows_reloaded.quantile(0.99) : 0.0}}},
           {"max_penetration_mm", rep.max_penetration * 1e3}};
 }
 

@@ -1,6 +1,7 @@
 // hapticloth-bench: benchmarks that print machine-readable results.
 //   hapticloth-bench step --scene FILE [--solver cholmod|pcg] [--dt S] [--alpha A] [--steps N] [--threads 1|2]
-//                         [--pcg-preconditioner ssor|block-jacobi] [--pcg-omega W] [--pinch] --json
+//                         [--pcg-preconditioner ssor|block-jacobi] [--pcg-omega W] [--matrix-refresh R]
+//                         [--pinch [--settle S]] --json
 //   hapticloth-bench haptic [--scene FILE] [--duration S] --json
 //   hapticloth-bench haptic --subscribers N [--duration S] [--cloth-rate HZ] --json
 //   hapticloth-bench timer [--ticks N] [--priority P] --json
@@ -134,6 +135,11 @@ int main(int argc, char** argv) {
   double omega = 0;
   step->add_option("--pcg-omega", omega, "SSOR's relaxation factor in [1, 2) (default: the scene's)")
       ->check(CLI::Range(1.0, 1.999));
+  double refresh = -1;
+  step->add_option("--matrix-refresh", refresh,
+                   "an element's change that forms its blocks anew, in [0, 1); 0 forms the matrix whole every "
+                   "step (default: the scene's)")
+      ->check(CLI::Range(0.0, 0.999));
   int threads = 0;
   step->add_option("--threads", threads, "threads of the element assembly, 1 or 2 (default: the scene's)")
       ->check(CLI::Range(1, 2));
@@ -277,6 +283,7 @@ int main(int argc, char** argv) {
       scene.pcg.preconditioner = preconditioner == "ssor" ? cloth::PcgPreconditioner::Ssor : cloth::PcgPreconditioner::BlockJacobi;
     if (omega > 0) scene.pcg.ssor_omega = omega;
     if (threads > 0) scene.integrator.assembly_threads = threads;
+    if (refresh >= 0) scene.integrator.matrix_refresh = refresh;
     scene.integrator.validate();
     if (pinch) {
       std::cout << bench::pinch_step(scene, steps / scene.haptics.haptic_rate, settle_s).dump(json ? -1 : 1) << "\n";

@@ -1,0 +1,73 @@
+// The system matrix of eq. 9 kept from step to step, each element's blocks formed anew only
+// when its factored Jacobian has moved (IntegratorConfig::matrix_refresh).
+//
+// Why: a cloth at rest, or held still in a pinch, changes its Jacobian by a few parts in a
+// million a step, yet forming the matrix anew scatters every element's nine blocks into their
+// rows and the PCG then copies every row: 0.2-0.3 ms of the 4050-triangle pinch's 0.5-0.8 ms
+// step (docs/performance.md). Kept, a step adds the blocks of the factors' difference (the
+// blocks are linear in the factors: element_lanes.hpp, kFactors) for the elements that moved,
+// and the solver reloads the rows they reach (LinearSolver::solve_changed). The forces, the
+// right-hand side h (F - alpha h H v) and the energies stay exact every step; only the matrix of
+// the linearly implicit step is within matrix_refresh of the current one per element, which a
+// linearly implicit Euler step allows (an approximate Jacobian keeps it consistent: a
+// W-method, Hairer and Wanner, Solving ODEs II, IV.7).
+#pragma once
+
+#include <vector>
+
+#include "cloth/element.hpp"
+#include "cloth/element_lanes.hpp"
+
+namespace hapticloth::cloth {
+
+class KeptMatrix {
+ public:
+  /// Assemblies between two formed whole: bounds the rounding that the kept sums gather.
+  static constexpr int kFullEvery = 1000;
+
+  /// `group_counts`: the groups of each assembly part (the last: the groups the calling thread
+  /// runs alone); `block_rows`: the system's block rows.
+  KeptMatrix(double tolerance, const std::vector<int>& group_counts, int block_rows);
+
+  bool enabled() const { return tolerance_ > 0.0; }
+  /// Whether the matrix in hand may be kept for a step h at alpha in `mode`: it was formed for
+  /// the same three, and not too long ago.
+  bool keeps(double h, double alpha, JacobianMode mode) const;
+  /// The matrix has been formed whole (full) or kept for (h, alpha, mode).
+  void assembled(double h, double alpha, JacobianMode mode, bool full);
+  /// The matrix in hand no longer holds the kept sums (a failed assembly).
+  void invalidate() { valid_ = false; }
+
+  /// A full assembly: group `g` of `part` keeps the factors it forms now.
+  void keep_factors(int part, int g, const ElementTerms& terms);
+  /// A kept step: the lanes of group `g` of `part` whose factors moved by more than the
+  /// tolerance of their largest entry (or are not finite) take the new ones, and
+  /// `terms.factor` becomes their difference (zero in the other lanes). Returns those lanes
+  /// as bits (lane l: bit l), of the group's first `count`.
+  unsigned take_changes(int part, int g, int count, ElementTerms& terms);
+
+  /// Block row `row` changed in this assembly; a part's thread marks only its own rows.
+  void mark(int part, int row) {
+    if (changed_[row]) return;
+    changed_[row] = 1;
+    part_rows_[part].push_back(row);
+  }
+  /// The rows marked since the last call, each once, and the marks cleared.
+  const std::vector<int>& take_changed_rows();
+
+ private:
+  struct Factors {
+    Lanes f[kFactors];
+  };
+  double tolerance_;
+  std::vector<std::vector<Factors>> kept_;  // per part, per group
+  std::vector<char> changed_;               // per block row
+  std::vector<std::vector<int>> part_rows_;
+  std::vector<int> rows_;
+  bool valid_ = false;
+  double h_ = 0.0, alpha_ = 0.0;
+  JacobianMode mode_ = JacobianMode::Spd;
+  int since_full_ = 0;
+};
+
+}  // namespace hapticloth::cloth
