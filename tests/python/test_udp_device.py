@@ -302,7 +302,10 @@ def test_the_device_clock_ticks_on_the_rigs_samples(tmp_path):
     assert len(answered) >= 0.9 * ticks
     assert len(set(answered)) >= 0.93 * len(answered)
     own, answered = udp_session_ticks(tmp_path, "loop", rate, seconds)
-    assert own["haptic_ticks"] >= 0.97 * 1000.0 * seconds, own
+    # Its own 1 kHz, told from the rig's 800 Hz with the same margin as above (930 > 1.08 * 800):
+    # a CI run once saw 2872 ticks in 3 s (a late tick is skipped, not caught up, and this VM
+    # wakes threads late at times).
+    assert own["haptic_ticks"] >= 0.93 * 1000.0 * seconds, own
     assert len(set(answered)) <= 0.85 * len(answered)
 
 
