@@ -85,6 +85,8 @@ struct Bsr {
   std::vector<int> hub_ptr;         // per hub: first entry (hubs.size() + 1)
   std::vector<int> hub_col;         // per entry: the block column
   std::vector<T> hub_val;           // kBlock per entry
+  std::vector<int> next_ptr, next_col;  // reload_hubs' new lists, swapped in (sized as the above)
+  std::vector<T> next_val;
 
   // rank: each block row's place in the order of the Gauss-Seidel sweeps; a cloth row's blocks
   // are kept in that order, so the ones before its diagonal block (dblk) are its lower part.
@@ -126,6 +128,9 @@ struct Bsr {
     hub_ptr.assign(hubs.size() + 1, 0);
     hub_col.assign(hub_blocks, 0);
     hub_val.assign(kBlock * static_cast<std::size_t>(hub_blocks), T(0));
+    next_ptr = hub_ptr;
+    next_col = hub_col;
+    next_val = hub_val;
   }
 
   // Block rows [lo, hi) (load_row), without the hubs (load_hubs): rows apart write apart, so
@@ -156,25 +161,64 @@ struct Bsr {
     return true;
   }
 
-  // Every hub row's blocks that are not exactly zero.
+  // Every hub row's blocks that are not exactly zero, in column order.
   void load_hubs(const SymCsr& A) {
     int e = 0;
     for (std::size_t i = 0; i < hubs.size(); ++i) {
       hub_ptr[i] = e;
       const int h = hubs[i], o = A.rowptr[3 * h], len = A.rowptr[3 * h + 1] - o;
-      const double* r0 = A.val.data() + o;
-      const double* r1 = r0 + len;
-      const double* r2 = r1 + len;
-      for (int k = 0; k < len; k += 3) {
-        bool zero = true;
-        for (int c = 0; c < 3; ++c) zero = zero && r0[k + c] == 0.0 && r1[k + c] == 0.0 && r2[k + c] == 0.0;
-        if (zero && k != diag[h]) continue;
-        hub_col[e] = A.col[o + k] / 3;
-        store(r0 + k, len, hub_val.data() + kBlock * e);
-        ++e;
-      }
+      for (int k = 0; k < len; k += 3)
+        if (take_hub_block(A, h, o, len, k, hub_col.data() + e, hub_val.data() + kBlock * e)) ++e;
     }
     hub_ptr[hubs.size()] = e;
+  }
+
+  // The hub rows' blocks after a change of A in the block rows `sorted` (ascending; `listed`:
+  // per block row, nonzero if it is one of them) and, by symmetry, in their columns. A hub row's
+  // block at a column not listed is the transpose of that row's block, which did not change, so
+  // it is kept; only the listed columns are read from A (a kept matrix's step, or a contact
+  // revision, changes a few tens of them where load_hubs scans the hubs' whole rows). The same
+  // lists as load_hubs would make.
+  void reload_hubs(const SymCsr& A, const int* sorted, int count, const std::vector<char>& listed) {
+    int e = 0;
+    for (std::size_t i = 0; i < hubs.size(); ++i) {
+      next_ptr[i] = e;
+      const int h = hubs[i], o = A.rowptr[3 * h], len = A.rowptr[3 * h + 1] - o;
+      int old = hub_ptr[i], j = 0;
+      const int old_end = hub_ptr[i + 1];
+      while (old < old_end || j < count) {
+        if (old < old_end && listed[hub_col[old]]) {  // read afresh below, if still there
+          ++old;
+          continue;
+        }
+        if (j == count || (old < old_end && hub_col[old] < sorted[j])) {  // kept as it was
+          next_col[e] = hub_col[old];
+          std::copy_n(hub_val.data() + kBlock * old, kBlock, next_val.data() + kBlock * e);
+          ++e;
+          ++old;
+          continue;
+        }
+        const int k = A.find(3 * h, 3 * sorted[j++]);
+        if (k >= 0 && take_hub_block(A, h, o, len, k - o, next_col.data() + e, next_val.data() + kBlock * e)) ++e;
+      }
+    }
+    next_ptr[hubs.size()] = e;
+    hub_ptr.swap(next_ptr);
+    hub_col.swap(next_col);
+    hub_val.swap(next_val);
+  }
+
+  // Hub row h's block at column position k of its row in A (which starts at o, `len` long)
+  // into *col and dst, unless it is exactly zero and not the diagonal block.
+  bool take_hub_block(const SymCsr& A, int h, int o, int len, int k, int* col, T* dst) const {
+    const double* r0 = A.val.data() + o;
+    bool zero = true;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) zero = zero && r0[r * len + k + c] == 0.0;
+    if (zero && k != diag[h]) return false;
+    *col = A.col[o + k] / 3;
+    store(r0 + k, len, dst);
+    return true;
   }
 
   // The 3x3 block at p (rows `len` apart in A) into dst, column-major, padded.

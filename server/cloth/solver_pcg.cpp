@@ -87,6 +87,9 @@ class PcgSolver final : public LinearSolver {
     at_.assign(n_ + 1, 0.0);
     touched_.clear();
     touched_.reserve(nb);
+    listed_.assign(nb, 0);
+    sorted_.clear();
+    sorted_.reserve(nb);
     cluster_.clear();
     cluster_.reserve(kMaxCluster);
     weight_.clear();
@@ -150,10 +153,21 @@ class PcgSolver final : public LinearSolver {
       if (!M.load_row(A, rows[i])) return SolveStatus::NotPositiveDefinite;
       if (!ssor_ && !invert_diagonal(A, rows[i], M.diag[rows[i]])) return SolveStatus::NotPositiveDefinite;
     }
-    M.load_hubs(A);
+    reload_hubs(M, A, rows, count);
     if (!hubs_.empty() && !factor_cluster(M, A)) return SolveStatus::NotPositiveDefinite;
     prepared_ = true;
     return ssor_ ? iterate_ssor(M, b, x, n_, n_ / 3) : iterate(M, b, x, n_, n_ / 3);
+  }
+
+  // The hub rows' blocks after a change in `rows` (Bsr::reload_hubs, which wants them sorted).
+  template <class T>
+  void reload_hubs(Bsr<T>& M, const SymCsr& A, const int* rows, int count) {
+    sorted_.assign(rows, rows + count);
+    std::sort(sorted_.begin(), sorted_.end());
+    sorted_.erase(std::unique(sorted_.begin(), sorted_.end()), sorted_.end());
+    for (int r : sorted_) listed_[r] = 1;
+    M.reload_hubs(A, sorted_.data(), static_cast<int>(sorted_.size()), listed_);
+    for (int r : sorted_) listed_[r] = 0;
   }
 
   // The matrix copy, the block-Jacobi inverses and the hub block. False if a diagonal block or
@@ -1020,6 +1034,8 @@ class PcgSolver final : public LinearSolver {
   static constexpr signed char kPlain = 0, kCluster = 1, kTouched = 2;
   std::vector<signed char> kind_;  // per block row: outside the cluster, in it, or reached by it
   std::vector<int> touched_;       // the rows the cluster reaches
+  std::vector<char> listed_;       // per block row: in solve_changed's list (reload_hubs)
+  std::vector<int> sorted_;        // that list, sorted
   std::vector<double> w_, t_, u_, at_;
   std::array<double, 3 * kMaxCluster> ct_{}, cw_{}, ctmp_{}, cx_{}, crb_{};
   std::vector<int> hubs_, local_, cluster_;
