@@ -149,11 +149,24 @@ class PcgSolver final : public LinearSolver {
     iterations_ = 0;
     residual_ = 0.0;
     prepared_ = false;
-    for (int i = 0; i < count; ++i) {
-      if (!M.load_row(A, rows[i])) return SolveStatus::NotPositiveDefinite;
-      if (!ssor_ && !invert_diagonal(A, rows[i], M.diag[rows[i]])) return SolveStatus::NotPositiveDefinite;
-    }
-    reload_hubs(M, A, rows, count);
+    // The listed rows in two halves and the hubs' blocks, on the pool's two threads when there
+    // is one (rows apart write apart, and the hubs' lists are apart from the rows): a kept
+    // matrix's step can list some hundreds of rows.
+    std::array<char, 2> ok{};
+    auto piece = [&](int c) {
+      if (c == 2) {
+        reload_hubs(M, A, rows, count);
+        return;
+      }
+      bool pd = true;
+      for (int i = count * c / 2; i < count * (c + 1) / 2; ++i) {
+        pd = M.load_row(A, rows[i]) && pd;
+        if (!ssor_) pd = invert_diagonal(A, rows[i], M.diag[rows[i]]) && pd;
+      }
+      ok[c] = pd;
+    };
+    in_parallel(3, piece);
+    if (!ok[0] || !ok[1]) return SolveStatus::NotPositiveDefinite;
     if (!hubs_.empty() && !factor_cluster(M, A)) return SolveStatus::NotPositiveDefinite;
     prepared_ = true;
     return ssor_ ? iterate_ssor(M, b, x, n_, n_ / 3) : iterate(M, b, x, n_, n_ / 3);
