@@ -14,10 +14,10 @@ inline Lanes vmax(Lanes a, Lanes b) { return (a > b) | (a != a) ? a : b; }
 
 KeptMatrix::KeptMatrix(double tolerance, const std::vector<int>& group_counts, int block_rows)
     : tolerance_(tolerance), changed_(block_rows, 0), part_rows_(group_counts.size()) {
-  if (!enabled()) return;
-  for (int n : group_counts) kept_.emplace_back(n);
-  for (auto& rows : part_rows_) rows.reserve(block_rows);
+  for (auto& rows : part_rows_) rows.reserve(block_rows);  // a row is marked once: no allocation
   rows_.reserve(block_rows);
+  if (enabled())
+    for (int n : group_counts) kept_.emplace_back(n);
 }
 
 bool KeptMatrix::keeps(double h, double alpha, JacobianMode mode) const {
