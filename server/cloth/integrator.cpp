@@ -307,6 +307,17 @@ void Integrator::plan_clearing(const ElementPartition& partition) {
   }
 }
 
+// f(row) for each block row the terms of `springs` reach (add_springs): their proxies' and
+// their free corners', repeats included.
+template <class F>
+void Integrator::for_each_spring_row(const std::vector<PointSpring>& springs, F&& f) const {
+  for (const PointSpring& sp : springs) {
+    f(sys_.free_nodes + sp.proxy);
+    for (int v : model_.elements[sp.tri].v)
+      if (model_.free_index[v] >= 0) f(model_.free_index[v]);
+  }
+}
+
 // Eq. 9 at state s for the (sub)step h: the matrix formed whole, or kept from the last
 // assembly (KeptMatrix::keeps: the same h, alpha and mode) with the changes of the elements
 // that moved, the external stiffness and the proxies' springs.
@@ -367,14 +378,12 @@ void Integrator::take_out_springs(double h) {
   }
 }
 
-// The rows a kept matrix's proxies and springs changed (assemble_proxies): the proxies' and the
-// springs' free corners.
+// The rows a kept matrix's proxies and springs changed (assemble_proxies): every proxy's (its
+// coupling is written anew) and the springs' free corners.
 void Integrator::mark_proxy_rows() {
   const int nf = sys_.free_nodes, rest = static_cast<int>(part_free_.size()) - 1;
   for (int j = 0; j < cfg_.proxies; ++j) kept_->mark(rest, nf + j);
-  for (const PointSpring& sp : springs_)
-    for (int v : model_.elements[sp.tri].v)
-      if (model_.free_index[v] >= 0) kept_->mark(rest, model_.free_index[v]);
+  for_each_spring_row(springs_, [&](int row) { kept_->mark(rest, row); });
 }
 
 // The proxies and point springs in eq. 9. A proxy is a node without mass or velocity of its own
@@ -432,18 +441,11 @@ void Integrator::add_springs(const ClothState& s, double h, const std::vector<Po
 // The block rows that the springs' terms reach (add_springs): their proxies' and their free
 // corners', each added once to spring_rows_.
 void Integrator::mark_spring_rows(const std::vector<PointSpring>& springs) {
-  auto mark = [&](int row) {
+  for_each_spring_row(springs, [&](int row) {
     if (spring_row_marked_[row]) return;
     spring_row_marked_[row] = 1;
     spring_rows_.push_back(row);
-  };
-  for (const PointSpring& sp : springs) {
-    mark(sys_.free_nodes + sp.proxy);
-    for (int k = 0; k < 3; ++k) {
-      const int fk = model_.free_index[model_.elements[sp.tri].v[k]];
-      if (fk >= 0) mark(fk);
-    }
-  }
+  });
 }
 
 // Work done on the cloth by the point springs over the candidate step (their start-of-step

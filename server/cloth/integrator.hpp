@@ -212,6 +212,8 @@ class Integrator {
   void add_springs(const ClothState& s, double h, const std::vector<PointSpring>& springs,
                    double sign);
   void mark_spring_rows(const std::vector<PointSpring>& springs);
+  template <class F>
+  void for_each_spring_row(const std::vector<PointSpring>& springs, F&& f) const;
   void candidate_state(const ClothState& s, double h);
   double contact_work(const ClothState& s) const;
   struct ClothEnergy {
