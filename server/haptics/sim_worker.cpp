@@ -177,7 +177,8 @@ void SimWorker::step(double now) {
   if (response_on_) hand_over_response();
   ++steps_;
   publish(now);
-  step_us_.add(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+  last_step_us_ = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
+  step_us_.add(last_step_us_);
   helper_wait_us_.add(1e3 * integ_.last_timing().helper_wait_ms);
 }
 

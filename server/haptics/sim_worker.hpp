@@ -61,6 +61,8 @@ class SimWorker {
   /// built from the first ones, in index order).
   std::uint64_t patch_candidate_overflows() const { return patch_overflows_; }
   const Histogram& step_us() const { return step_us_; }
+  /// The last step's time, us (what step_us() last took in).
+  double last_step_us() const { return last_step_us_; }
   /// Per step, the time the step waited for the integrator's helper thread (two threads): what
   /// a slowed helper core adds to step_us.
   const Histogram& helper_wait_us() const { return helper_wait_us_; }
@@ -90,6 +92,7 @@ class SimWorker {
   std::vector<cloth::Mat3> response_;
   ClothSnapshot mine_;
   Histogram step_us_, helper_wait_us_;
+  double last_step_us_ = 0.0;
   std::uint64_t steps_ = 0;
   double patch_radius_ = 0.0;
   std::uint64_t patch_overflows_ = 0;

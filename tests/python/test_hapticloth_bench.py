@@ -247,6 +247,42 @@ def test_step_pinch_keeps_its_matrix():
         0.1 * whole["solver_iterations_per_step"]["mean"]
 
 
+def test_step_script_times_the_step_by_fingers_in_contact():
+    """--script plays the scene's [device] script (touch, stroke, pinch, lift, release) from the
+    cloth at rest, directly coupled at 1 ms on the stepped clock, and splits the steps by how
+    many fingertips touch the cloth: the script's first second touches nothing, finger 0 alone
+    touches and strokes, and both hold the pinch from 5.8 s to 7.8 s."""
+    j = bench("step", "--scene", str(SCENE), "--script")
+    assert j["benchmark"] == "step-script" and j["settled_s"] == 6.0
+    assert j["script"].endswith("touch_stroke_pinch.toml") and j["script_s"] == pytest.approx(8.4)
+    by = j["fingers_in_contact"]
+    steps = {k: by[k]["steps"] for k in ("none", "one", "both")}
+    assert sum(steps.values()) == pytest.approx(1000 * j["script_s"], abs=2)
+    assert steps["none"] > 1000 and steps["one"] > 1000 and 1500 < steps["both"] < 2500
+    for k in ("none", "one", "both"):
+        s = by[k]
+        assert 0 < s["sim_step_us"]["p50"] <= s["sim_step_us"]["p99"] <= s["sim_step_us"]["max"]
+        assert s["integrator_us"]["p50"] <= s["sim_step_us"]["p50"]
+        assert s["solves_per_step"] >= 1.0 and s["iterations_per_step"]["mean"] > 0
+        assert 0 <= s["elements_formed_per_step"] <= j["triangles"]
+    # A stroke's friction and the pinch's new contacts are solved again within their steps; an
+    # untouched cloth never is.
+    assert by["none"]["solves_per_step"] < 1.01 < by["one"]["solves_per_step"]
+    assert j["max_penetration_mm"] < 0.5
+
+
+def test_step_script_needs_a_device_script():
+    r = subprocess.run([str(program("hapticloth-bench")), "step", "--scene",
+                        str(SCENE.parent / "hanging_square_4k.toml"), "--script", "--json"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0
+    assert "step --script: scene 'hanging_square_4k' has no [device] script" in r.stderr
+    r = subprocess.run([str(program("hapticloth-bench")), "step", "--scene", str(SCENE), "--script", "--pinch",
+                        "--json"], capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0 and "--pinch excludes --script" in r.stderr
+    assert "Traceback" not in r.stderr
+
+
 def test_step_bad_settle():
     def run(*args):
         return subprocess.run([str(program("hapticloth-bench")), "step", "--scene", str(SCENE), *args, "--json"],

@@ -76,5 +76,9 @@ nlohmann::json late_ticks(const LateTickOptions& opt);
 /// across its surface at the vertex nearest its centroid; else the scene's start state is
 /// pinched along z at the middle of its extent.
 nlohmann::json pinch_step(const app::Scene& scene, double seconds, double settle_s = 0.0);
+/// hapticloth-bench step --script: the scene's [device] script played on the stepped clock,
+/// directly coupled at the haptic period, from the cloth brought to rest by the scene's preroll
+/// (20 ms steps); the step's time by how many fingertips touch the cloth (tools/bench/script_step.cpp).
+nlohmann::json script_step(const app::Scene& scene);
 
 }  // namespace hapticloth::bench

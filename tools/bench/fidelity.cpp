@@ -204,6 +204,9 @@ json pinch_step(const app::Scene& scene, double seconds, double settle_s) {
   // and in the hold after it: the step's tail comes from the steps solved more than once.
   std::array<std::array<long, 4>, 2> by_solves{};
   std::array<haptics::Histogram, 4> integrator_us_by_solves;
+  // The same in the squeeze and in the hold: the squeeze's steps, where the contact forms and
+  // the fingertips stop, take the most iterations.
+  std::array<haptics::Histogram, 2> integrator_us_by_phase, iterations_by_phase;
   rig.session->run_stepped(seconds, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker& w) {
     ++ticks;
     both += h.last_report().finger[0].in_contact && h.last_report().finger[1].in_contact;
@@ -219,11 +222,17 @@ json pinch_step(const app::Scene& scene, double seconds, double settle_s) {
     const auto solved = std::min<std::uint64_t>(rev - revisions, 3);
     by_solves[ticks > 100][solved]++;
     integrator_us_by_solves[solved].add(1e3 * t.total_ms);
+    integrator_us_by_phase[ticks > 100].add(1e3 * t.total_ms);
+    iterations_by_phase[ticks > 100].add(t.iterations);
     revisions = rev;
   });
   solves = steps + rig.session->report().contact_revisions;
   const haptics::SessionReport rep = rig.session->report();
   const auto& st = rep.sim_step_us;
+  auto phase = [&](int i) {
+    return json{{"p50", integrator_us_by_phase[i].quantile(0.5)}, {"p99", integrator_us_by_phase[i].quantile(0.99)},
+                {"iterations", iterations_by_phase[i].mean()}};
+  };
   return {{"benchmark", "step-pinch"},
           {"scene", scene.name},
           {"settled_s", settle_s},  // 0: the scene's start state, pinched as it falls
@@ -243,6 +252,7 @@ json pinch_step(const app::Scene& scene, double seconds, double settle_s) {
           {"contact_revisions", rep.contact_revisions},
           {"steps_by_solves", {{"squeeze", by_solves[0]}, {"hold", by_solves[1]}}},
           {"integrator_p50_us_by_solves", by_solves_p50(integrator_us_by_solves)},
+          {"integrator_us_by_phase", {{"squeeze", phase(0)}, {"hold", phase(1)}}},
           {"kept_matrix", {{"matrix_refresh", ic.matrix_refresh},
                            {"elements_formed_per_step", static_cast<double>(refreshed) / std::max<std::uint64_t>(1, steps)},
                            {"steps_formed_whole", static_cast<double>(formed_whole) / std::max<std::uint64_t>(1, steps)},

@@ -153,6 +153,11 @@ int main(int argc, char** argv) {
                    "preroll does) and pinch it across its surface (default 0: pinch the scene's start state)")
       ->check(opts::number_in(0.0, 60.0))
       ->needs(pinch_flag);
+  bool script = false;
+  auto* script_flag = step->add_flag("--script", script,
+                                     "play the scene's [device] script from the cloth at rest (its preroll), directly "
+                                     "coupled on the stepped clock: the step's time by fingertips in contact");
+  script_flag->excludes(pinch_flag);
 
   auto* haptic = cli.add_subcommand(
       "haptic", "the 1 kHz haptic loop in real time with the mock device and the global "
@@ -285,6 +290,10 @@ int main(int argc, char** argv) {
     if (threads > 0) scene.integrator.assembly_threads = threads;
     if (refresh >= 0) scene.integrator.matrix_refresh = refresh;
     scene.integrator.validate();
+    if (script) {
+      std::cout << bench::script_step(scene).dump(json ? -1 : 1) << "\n";
+      return 0;
+    }
     if (pinch) {
       std::cout << bench::pinch_step(scene, steps / scene.haptics.haptic_rate, settle_s).dump(json ? -1 : 1) << "\n";
       return 0;
