@@ -37,7 +37,7 @@ ClothSnapshot sized_snapshot(int vertices, int patch_candidates) {
 Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& cfg,
                  std::unique_ptr<cloth::LinearSolver> solver, const cloth::ClothState& start,
                  devices::DeviceHandle& device, const SessionConfig& sc)
-    : dev_(device), sc_(sc), dt_sim_(cfg.dt) {
+    : dev_(device), sc_(sc), dt_sim_(cfg.dt), cloth_start_(start.time) {
   if (dev_.state() != devices::Lifecycle::Inactive)
     throw std::invalid_argument("session: the device must be configured (inactive)");
   if (!(sc_.haptic_rate > 0.0)) throw std::invalid_argument("session: haptic_rate must be > 0");
@@ -235,6 +235,7 @@ SessionReport Session::report() const {
   r.sim_step_us = sim_->step_us();
   r.sim_helper_wait_us = sim_->helper_wait_us();
   r.sim_steps = sim_->steps();
+  r.cloth_time = sim_->state().time - cloth_start_;
   r.contact_ticks = loop_->contact_ticks();
   r.narrow_phase_skipped = loop_->narrow_phase_skipped();
   r.patch_rebuilds = loop_->patch_rebuilds();
@@ -270,7 +271,9 @@ std::string SessionReport::to_text() const {
     os << "  (steps waiting over 100 us: " << std::setprecision(3) << sim_helper_wait_us.fraction_at_least(100.0)
        << ")\n" << std::setprecision(1);
   }
-  os << "sim steps        " << sim_steps << " (" << std::setprecision(3) << sim_time << " s)\n";
+  os << "sim steps        " << sim_steps << " in " << std::setprecision(3) << sim_time << " s: the cloth advanced "
+     << cloth_time << " s (" << std::setprecision(2) << cloth_time_ratio() << " x the session's time)\n"
+     << std::setprecision(1);
   os << "contact ticks    " << contact_ticks << " (slipping " << slip_ticks << "), max force "
      << max_force << " N\n";
   os << "narrow phase     skipped on " << narrow_phase_skipped << " ticks (no finger near the cloth)\n";
@@ -303,6 +306,9 @@ std::string SessionReport::to_json() const {
   j["sim_helper_wait_us"] = h(sim_helper_wait_us);
   j["sim_helper_wait_us"]["steps_over_100us"] = sim_helper_wait_us.fraction_at_least(100.0);
   j["sim_steps"] = sim_steps;
+  j["sim_time_s"] = sim_time;
+  j["cloth_time_s"] = cloth_time;
+  j["cloth_time_ratio"] = cloth_time_ratio();
   j["contact_ticks"] = contact_ticks;
   j["slip_ticks"] = slip_ticks;
   j["max_force_n"] = max_force;

@@ -61,11 +61,17 @@ struct SessionReport {
   std::uint64_t late_ticks = 0, passivity_ticks = 0;
   double passivity_deficit = 0.0;
   double max_force = 0.0;          ///< N, largest force sent to a finger
-  double sim_time = 0.0;           ///< simulated seconds
+  double sim_time = 0.0;           ///< s of session: the haptic ticks run times the haptic period
+  /// s the cloth advanced in the session (its steps times their dt). Below sim_time when the
+  /// global step takes longer than its dt in real time: the cloth then moves in slow motion
+  /// against the hand (cloth_time / sim_time of real time).
+  double cloth_time = 0.0;
   bool realtime_scheduling = false;
   bool memory_locked = false;
   std::string scheduling_note;     ///< why real-time scheduling is on or off
   std::uint64_t missed_deadlines() const { return haptic.missed_deadlines; }
+  /// cloth_time / sim_time (0 before any tick): 1 when the cloth keeps pace with the hand.
+  double cloth_time_ratio() const { return sim_time > 0.0 ? cloth_time / sim_time : 0.0; }
   std::string to_text() const;
   std::string to_json() const;
 };
@@ -129,6 +135,7 @@ class Session {
   devices::DeviceHandle& dev_;
   SessionConfig sc_;
   double dt_sim_;
+  double cloth_start_;  // the cloth's time at the session's start, s
   std::unique_ptr<devices::SafetyGate> gate_;
   std::unique_ptr<TripleBuffer<ClothSnapshot>> snap_;
   std::unique_ptr<TripleBuffer<HapticReport>> rep_;

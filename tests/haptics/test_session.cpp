@@ -277,3 +277,48 @@ TEST(Haptics, DeviceClockNeedsAStreamingDevice) {
     EXPECT_NE(std::string(e.what()).find("mock"), std::string::npos) << e.what();
   }
 }
+
+// The cloth's own time against the session's (SessionReport::cloth_time): on the stepped clock
+// the cloth steps with the ticks and keeps pace; in real time a step far slower than its dt
+// (CHOLMOD on a 4050-triangle cloth: about 10 ms a 1 ms step) leaves the cloth in slow motion
+// against the hand, and the summary says how slow. A small cloth keeps pace in real time.
+TEST(Haptics, ReportsTheClothsTimeAgainstTheSessions) {
+  auto square = [](int quads) {
+    cloth::GridSpec g;
+    g.width = g.height = 0.5;
+    g.nx = g.ny = quads;
+    g.origin = {-0.25, -0.25, 0.0};
+    return cloth::build_model(cloth::make_grid(g), test::denim(), {});
+  };
+  const auto away = one_finger({{0.0, Vec3(0.15, 0.15, 0.2)}});  // touches nothing
+  haptics::SessionConfig sc;
+  sc.try_realtime = false;
+  auto rig = [&](int quads) {
+    cloth::ClothModel m = square(quads);
+    const cloth::ClothState start = cloth::rest_state(m);
+    return std::make_unique<test::TouchRig>(std::move(m), away, sc, sim_config(), start, "cholmod");
+  };
+  {
+    auto r = rig(45);
+    r->session->run_stepped(0.05);
+    const auto rep = r->session->report();
+    EXPECT_NEAR(rep.cloth_time, rep.sim_time, 1e-9);
+    EXPECT_NEAR(rep.cloth_time_ratio(), 1.0, 1e-9);
+  }
+  {
+    auto r = rig(45);
+    r->session->run_realtime(0.3);
+    const auto rep = r->session->report();
+    EXPECT_NEAR(rep.sim_time, 0.3, 0.02);
+    EXPECT_NEAR(rep.cloth_time, 1e-3 * static_cast<double>(rep.sim_steps), 1e-9);
+    EXPECT_LT(rep.cloth_time_ratio(), 0.5) << rep.to_text();
+    const std::string text = rep.to_text();
+    EXPECT_NE(text.find("x the session's time"), std::string::npos) << text;
+    EXPECT_NE(rep.to_json().find("\"cloth_time_ratio\""), std::string::npos);
+  }
+  {
+    auto r = rig(6);
+    r->session->run_realtime(0.3);
+    EXPECT_GT(r->session->report().cloth_time_ratio(), 0.8) << r->session->report().to_text();
+  }
+}
