@@ -200,6 +200,7 @@ class Integrator {
   Attempt advance(ClothState& s, double h, int depth);
   Attempt single_step(ClothState& s, double h);
   bool slow_blow_up(double h);
+  double weight_impulse(double h) const;
   bool solve(const ClothState& s, double h);
   bool revise_contacts(const ClothState& s, double h);
   bool line_search_contacts(const ClothState& s, double h);
@@ -274,6 +275,7 @@ class Integrator {
   bool have_before_ = false, blown_up_ = false;
   double alpha_ = 1.0;  // alpha in use: cfg_.alpha, or 1 from the first explosion on
   double last_h_ = 0.0; // the last (sub)step solved
+  double free_mass_norm_ = 0.0;  // |m| over the free vertices, kg (weight_impulse)
   std::vector<Eigen::VectorXd> response_;  // proxy_response(): A^-1 e per proxy dof (warm starts)
   Eigen::VectorXd unit_;
   // The elements in groups of kLanes (assemble_cloth): all of them, or with two threads

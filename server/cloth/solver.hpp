@@ -40,6 +40,13 @@ class LinearSolver {
     (void)count;
     return solve(A, b, x);
   }
+  /// A residual size that counts as converged whatever |b| is: an iterative solve stops at
+  /// |b - A x| <= tolerance max(|b|, scale) (a direct one ignores it). 0, the default: relative
+  /// to |b| alone. The integrator gives the norm of the weight's impulse over its step
+  /// (Integrator::weight_impulse), so that a cloth at rest, whose right-hand side is a thousandth
+  /// of that, is not solved to a millionth of its weight.
+  void set_residual_scale(double scale) { residual_scale_ = scale; }
+  double residual_scale() const { return residual_scale_; }
   /// Iterations of the last solve (1 for a direct solve).
   int iterations() const { return iterations_; }
   /// Relative residual |b - A x| / |b| of the last solve (iterative solvers).
@@ -56,6 +63,7 @@ class LinearSolver {
   double residual_ = 0.0;
   int precision_fallbacks_ = 0;
   std::uint64_t helper_sweeps_ = 0;
+  double residual_scale_ = 0.0;
 };
 
 /// The PCG's preconditioner. Both treat the fingertip proxies with the vertices they touch as

@@ -282,6 +282,12 @@ class PcgSolver final : public LinearSolver {
   }
 
 
+  // The squared residual that ends the solve: tolerance x the larger of |b| and the residual
+  // scale (LinearSolver::set_residual_scale), squared.
+  double goal_squared(double bn2) const {
+    return opt_.tolerance * opt_.tolerance * std::max(bn2, residual_scale_ * residual_scale_);
+  }
+
   // |b|^2 into bn2 and a finite guess in x (else 0); a status if that settles the solve (b = 0
   // or not finite).
   static std::optional<SolveStatus> start(const double* b, double* x, int n, double& bn2) {
@@ -311,7 +317,7 @@ class PcgSolver final : public LinearSolver {
     std::copy(x, x + n, x0_.data());  // padded copy of the guess for the product
     M.multiply_dot(x0_.data(), q);
     for (int i = 0; i < n; ++i) r[i] = b[i] - q[i];
-    const double goal2 = opt_.tolerance * opt_.tolerance * bn2;
+    const double goal2 = goal_squared(bn2);
     double rr;
     double rz = precondition(r, z, nb, rr);
     if (rr <= goal2) {
@@ -402,7 +408,7 @@ class PcgSolver final : public LinearSolver {
     double* zb = q_.data();   // z' = E r'
     double* pb = p_.data();   // p'
     double rr = residual_and_lower_solve(M, b, x, r, rb);
-    const double goal2 = opt_.tolerance * opt_.tolerance * bn2;
+    const double goal2 = goal_squared(bn2);
     if (rr <= goal2) {
       residual_ = std::sqrt(rr) / bnorm;
       return SolveStatus::Ok;

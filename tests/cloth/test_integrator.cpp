@@ -642,3 +642,49 @@ TEST(Integrator, TheSolverSolvesTheKeptMatrix) {
     EXPECT_GE(reloads, 10) << threads << " thread(s)";
   }
 }
+
+// A cloth hanging at rest has a right-hand side far below its weight's impulse over the step,
+// and each step is solved to the solver's tolerance of the larger of the two
+// (Integrator::weight_impulse, LinearSolver::set_residual_scale): the residual of every step
+// stays within tolerance x h |g| |m|, and on some steps it is more than tolerance x |b|, which
+// a solve relative to |b| alone would have gone on to.
+TEST(Integrator, AClothAtRestIsSolvedToItsWeightsScale) {
+  const auto m = vertical_sheet(test::denim(), 20);
+  cloth::ClothState s = cloth::rest_state(m);
+  {
+    cloth::IntegratorConfig pre;
+    pre.dt = 0.01;
+    cloth::Integrator settle(m, pre, cloth::make_cholmod_solver());
+    for (int k = 0; k < 300; ++k) settle.step(s);
+    for (auto& v : s.v) v.setZero();
+  }
+  cloth::IntegratorConfig cfg;
+  cfg.dt = 1e-3;
+  const double tol = 1e-3;
+  cloth::Integrator integ(m, cfg, cloth::make_pcg_solver({.tolerance = tol, .single_precision_matrix = true}));
+  double m2 = 0.0;
+  for (int v : m.free_vertices) m2 += m.mass[v] * m.mass[v];
+  const double scale = cfg.dt * 9.81 * std::sqrt(m2);
+  int floor_bound = 0, steps = 0;
+  double worst = 0.0, smallest_b = 1e300;
+  for (int k = 0; k < 100; ++k) {
+    const cloth::ClothState before = s;
+    integ.step(s);
+    ASSERT_EQ(integ.last_timing().substeps, 1);
+    EXPECT_NEAR(integ.solver().residual_scale(), scale, 1e-12 * scale);
+    const cloth::SymCsr& A = integ.matrix();
+    Eigen::VectorXd dv = Eigen::VectorXd::Zero(A.n), r(A.n);
+    for (int i = 0; i < m.num_vertices(); ++i)  // eq. 9 at alpha 1: v_new = v + dv
+      if (m.free_index[i] >= 0) dv.segment<3>(3 * m.free_index[i]) = s.v[i] - before.v[i];
+    A.multiply(dv.data(), r.data());
+    r = integ.system_rhs() - r;
+    const double bn = integ.system_rhs().norm();
+    smallest_b = std::min(smallest_b, bn / scale);
+    worst = std::max(worst, r.norm() / (tol * std::max(bn, scale)));
+    floor_bound += r.norm() > tol * bn;
+    ++steps;
+  }
+  EXPECT_LT(smallest_b, 0.1) << "the cloth is not at rest";
+  EXPECT_LE(worst, 1.05);  // the float copy's rounding on top of the tolerance
+  EXPECT_GE(floor_bound, steps / 10) << "the solves went on to tolerance x |b|";
+}

@@ -212,6 +212,46 @@ TEST(Solver, PcgMatchesCholmod) {
   }
 }
 
+// The residual scale (LinearSolver::set_residual_scale): a right-hand side far below the scale
+// is solved to tolerance x scale, not to tolerance x |b|; one above it as before. Both
+// preconditioners, from a zero guess.
+TEST(Solver, PcgStopsAtTheResidualScale) {
+  Sheet sheet;
+  std::mt19937 rng(5);
+  const auto [A, b, x_chol] = cholmod_reference(sheet, rng, 0.01);
+  double bn = 0.0;
+  for (double v : b) bn += v * v;
+  bn = std::sqrt(bn);
+  std::vector<double> tiny(b);
+  for (double& v : tiny) v *= 1e-3;
+  const double tol = 1e-3;
+  for (auto pre : kPreconditioners) {
+    SCOPED_TRACE(cloth::to_string(pre));
+    auto pcg = cloth::make_pcg_solver({.tolerance = tol, .preconditioner = pre});
+    pcg->analyze(A);
+    auto solve = [&](const std::vector<double>& rhs, double scale, std::vector<double>& x) {
+      pcg->set_residual_scale(scale);
+      x.assign(A.n, 0.0);
+      EXPECT_EQ(pcg->solve(A, rhs.data(), x.data()), cloth::SolveStatus::Ok);
+      return pcg->iterations();
+    };
+    std::vector<double> x;
+    const int relative = solve(tiny, 0.0, x);
+    EXPECT_LE(relative_residual(A, tiny, x), tol);
+    // The scale of the full right-hand side: the tiny one needs only |r| <= tol |b|, 1000x its own.
+    const int scaled = solve(tiny, bn, x);
+    EXPECT_EQ(pcg->residual_scale(), bn);
+    EXPECT_LE(relative_residual(A, tiny, x) * 1e-3 * bn, tol * bn * (1 + 1e-9));
+    EXPECT_GT(relative_residual(A, tiny, x), tol) << "solved as far as without the scale";
+    EXPECT_LT(scaled, relative);
+    // A scale below |b| changes nothing.
+    std::vector<double> x_full, x_low;
+    const int full = solve(b, 0.0, x_full);
+    EXPECT_EQ(solve(b, 1e-3 * bn, x_low), full);
+    EXPECT_EQ(x_full, x_low);
+  }
+}
+
 // SSOR against block-Jacobi on the step of a finer sheet at the scenes' tolerance: the same
 // answer (within the tolerance times the step's condition), in fewer iterations: the sweeps
 // carry a correction across the sheet in one iteration where block-Jacobi moves it one vertex.
