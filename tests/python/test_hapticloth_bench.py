@@ -263,11 +263,13 @@ def test_step_script_times_the_step_by_fingers_in_contact():
         s = by[k]
         assert 0 < s["sim_step_us"]["p50"] <= s["sim_step_us"]["p99"] <= s["sim_step_us"]["max"]
         assert s["integrator_us"]["p50"] <= s["sim_step_us"]["p50"]
-        assert s["solves_per_step"] >= 1.0 and s["iterations_per_step"]["mean"] > 0
-        assert 0 <= s["elements_formed_per_step"] <= j["triangles"]
+        assert s["iterations_per_step"]["mean"] > 0
     # A stroke's friction and the pinch's new contacts are solved again within their steps; an
     # untouched cloth never is.
     assert by["none"]["solves_per_step"] < 1.01 < by["one"]["solves_per_step"]
+    # The pinch lifts the cloth, whose elements then move past the kept matrix's tolerance; at
+    # rest between the touches few do.
+    assert by["both"]["elements_formed_per_step"] > 2 * by["none"]["elements_formed_per_step"]
     assert j["max_penetration_mm"] < 0.5
 
 
