@@ -120,6 +120,11 @@ class Session {
   void start();
   void stop();
   void account_tick();
+  /// A tick whose own compute ran past the next deadline: a missed deadline and an overrun.
+  void count_overrun() {
+    ++r_.haptic.missed_deadlines;
+    ++r_.haptic.overruns;
+  }
   // run_realtime()'s threads.
   void sim_thread_loop(double t_start, const std::atomic<bool>& stop_flag);
   std::string haptic_thread_priority();

@@ -51,7 +51,8 @@ struct LoopStats {
   Histogram period_error_us;  ///< |actual wake-up - deadline|
   Histogram compute_us;       ///< time spent in one tick
   std::uint64_t ticks = 0;
-  std::uint64_t missed_deadlines = 0;  ///< ticks that ended after the next deadline
+  std::uint64_t missed_deadlines = 0;  ///< ticks skipped after a late wake-up, plus overruns
+  std::uint64_t overruns = 0;          ///< ticks whose own compute ended after the next deadline
 };
 
 }  // namespace hapticloth::haptics

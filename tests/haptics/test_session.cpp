@@ -322,3 +322,38 @@ TEST(Haptics, ReportsTheClothsTimeAgainstTheSessions) {
     EXPECT_GT(r->session->report().cloth_time_ratio(), 0.8) << r->session->report().to_text();
   }
 }
+
+// A tick that holds the haptic thread past the next deadline (here an observer that takes 3 ms
+// on every 50th tick) is counted as an overrun, apart from the ticks a late wake-up skips: the
+// summary tells the loop's own lateness from the kernel's.
+TEST(Haptics, CountsTheTicksThatOverranTheirPeriod) {
+  struct SlowEvery50th : haptics::SessionObserver {
+    long ticks = 0;
+    void on_haptic_tick(const haptics::HapticReport&, const devices::DeviceState&,
+                        const devices::DeviceCommand&) noexcept override {
+      if (++ticks % 50 == 0) std::this_thread::sleep_for(std::chrono::milliseconds(3));
+    }
+  };
+  cloth::GridSpec g;
+  g.width = g.height = 0.5;
+  g.nx = g.ny = 6;
+  g.origin = {-0.25, -0.25, 0.0};
+  cloth::ClothModel m = cloth::build_model(cloth::make_grid(g), test::denim(), {});
+  const cloth::ClothState start = cloth::rest_state(m);
+  haptics::SessionConfig sc;
+  sc.try_realtime = false;
+  test::TouchRig rig(std::move(m), one_finger({{0.0, Vec3(0.15, 0.15, 0.2)}}), sc, sim_config(), start, "cholmod");
+  SlowEvery50th slow;
+  rig.session->add_observer(&slow);
+  rig.session->run_realtime(0.3);
+  const auto rep = rig.session->report();
+  const long held = slow.ticks / 50;
+  ASSERT_GE(held, 4) << rep.to_text();
+  // Each hold overruns once and skips the two or three ticks due meanwhile; a kernel wake-up
+  // 1-9 ms late (about one in 10 s here) may add one more of either.
+  EXPECT_GE(rep.haptic.overruns, static_cast<std::uint64_t>(held)) << rep.to_text();
+  EXPECT_LE(rep.haptic.overruns, static_cast<std::uint64_t>(held + 2)) << rep.to_text();
+  EXPECT_GE(rep.haptic.missed_deadlines, rep.haptic.overruns + 2 * static_cast<std::uint64_t>(held)) << rep.to_text();
+  EXPECT_NE(rep.to_text().find(" of them overran their period"), std::string::npos);
+  EXPECT_NE(rep.to_json().find("\"overruns\""), std::string::npos);
+}
