@@ -455,7 +455,8 @@ void FingertipContact::merge_added(Finger& F, size_t nold) {
 }
 
 bool FingertipContact::revise(const std::vector<Vec3>& x_new,
-                              const std::vector<cloth::ProxyNode>& proxies, bool short_of_solve) {
+                              const std::vector<cloth::ProxyNode>& proxies, bool short_of_solve,
+                              bool same_candidate) {
   // The first kFreeRevisions re-solves of a step may release contacts; after them the
   // contact set only grows (friction is still revised), so no sample is left inside a sphere
   // at the end. Without that, a step whose new contacts start outside the sphere can cycle
@@ -471,6 +472,12 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
   // it (deferring there let the 20 ms pinch carry 10% less than the weight). The integrator's
   // line search keeps the re-solves from overshooting (Integrator::revise_contacts); contacts
   // released earlier in the step come back with their state (add_contacts, restore_touching).
+  // A re-solve that took no iteration left the candidate as it was: on it, a contact whose
+  // friction the solver cannot resolve (a change under its tolerance) would switch between
+  // sticking and sliding until the free revisions ran out, each switch a re-solve that again
+  // takes no iteration (753 of the 2547 re-solves of the 4050-triangle square's stroke,
+  // `hapticloth-bench step --script`). So the free revisions end there.
+  if (same_candidate) revisions_ = std::max(revisions_, kFreeRevisions);
   const bool settle = revisions_ < kFreeRevisions;
   const bool defer = !settle && h_ <= kShortStep;
   ++revisions_;

@@ -61,7 +61,7 @@ class FingertipContact final : public cloth::StepContacts {
   void begin_step(const cloth::ClothState& s, const std::array<FingerTarget, kMaxFingers>& in,
                   double h);
   bool revise(const std::vector<Vec3>& x_new, const std::vector<cloth::ProxyNode>& proxies,
-              bool short_of_solve) override;
+              bool short_of_solve, bool same_candidate) override;
   /// After the step (the new state `s`): the forces the cloth got, friction state, penetration.
   void end_step(const cloth::ClothState& s);
 

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <numeric>
+#include <tuple>
 
 #include "cloth/integrator.hpp"
 #include "cloth/mesh.hpp"
@@ -208,4 +209,40 @@ TEST(FingertipContact, FastStrikeConvergesWithTheClothOutside) {
   EXPECT_LT(deepest, 0.5e-3);
   EXPECT_LT(imbalance, 1e-6);
   EXPECT_EQ(allocations, 0u);  // the sim thread's hot path
+}
+
+// A re-solve that took no iteration hands the contacts the candidate they saw last; the free
+// revisions (those that may release contacts or let a sliding contact stick again) end there,
+// since on the same candidate they could only repeat themselves. The candidate here: the cloth
+// pressed 1 mm by a fingertip, then moved away from its centre to 1.5 times the distance
+// (along each contact's normal, so no friction acts). Seen fresh, every contact is released;
+// seen again after a re-solve that took no iteration, nothing changes.
+TEST(FingertipContact, TheSameCandidateEndsTheFreeRevisions) {
+  const cloth::ClothModel m = test::denim_drum(20, 0.3);
+  cloth::IntegratorConfig cfg;
+  cfg.proxies = 2;
+  cloth::Integrator integ(m, cfg, cloth::make_cholmod_solver());
+  haptics::ContactParams p;
+  p.friction = 0.6;
+  haptics::FingertipContact tips(m, m.triangles, 2, p, integ);  // the second finger absent
+  const cloth::ClothState s = cloth::rest_state(m);
+  const haptics::Vec3 centre(0.0, 0.0, p.radius - 1e-3);
+  std::vector<haptics::Vec3> pulled_off = s.x;
+  for (auto& x : pulled_off) x = centre + 1.5 * (x - centre);
+  auto revise = [&](bool same_candidate) {
+    std::array<haptics::FingerTarget, haptics::kMaxFingers> in{};
+    in[0] = {true, centre, haptics::Vec3::Zero()};
+    tips.begin_step(s, in, 1e-3);
+    const size_t touching = integ.point_springs().size();
+    const bool changed = tips.revise(pulled_off, integ.proxies(), false, same_candidate);
+    return std::make_tuple(touching, changed, integ.point_springs().size());
+  };
+  const auto [touching, released, left] = revise(false);
+  EXPECT_GT(touching, 10u);
+  EXPECT_TRUE(released);
+  EXPECT_EQ(left, 0u);
+  const auto [touching_again, changed, kept] = revise(true);
+  EXPECT_EQ(touching_again, touching);
+  EXPECT_FALSE(changed);
+  EXPECT_EQ(kept, touching);
 }
