@@ -632,7 +632,7 @@ bool Integrator::solve(const ClothState& s, double h) {
 bool Integrator::revise_contacts(const ClothState& s, double h) {
   released_.clear();
   bool cut = false;  // dv_ is the line search's point short of the re-solve dv_full_
-  bool same = false;  // the last re-solve took no iteration: the candidate is as it was
+  bool same = false;  // the last re-solve left dv_ as it was (it took no iteration)
   for (int rev = 0; contacts_ && rev < cfg_.max_contact_revisions; ++rev) {
     springs_solved_.assign(springs_.begin(), springs_.end());
     if (!contacts_->revise(xn_, proxies_, cut, same)) break;
@@ -651,7 +651,7 @@ bool Integrator::revise_contacts(const ClothState& s, double h) {
                                                   dv_.data());
     solver_synced_ = st == SolveStatus::Ok;
     timing_.iterations += solver_->iterations();
-    same = solver_->iterations() == 0;
+    same = dv_ == dv_from_;  // whatever the solver; a PCG guess already within its tolerance
     timing_.solve_ms += ms_since(t3);
     if (st != SolveStatus::Ok || !dv_.allFinite()) {
       ++(st == SolveStatus::Ok ? events_.non_finite : events_.solver_not_converged);

@@ -104,8 +104,8 @@ class StepContacts {
   /// `x_new`: candidate end positions of all vertices; proxies hold their candidate
   /// displacement. `short_of_solve`: the candidate is the active-set line search's point, short
   /// of the last re-solve, where a released contact touches again (Integrator::revise_contacts).
-  /// `same_candidate`: the last re-solve took no iteration, so this is the candidate the last
-  /// call saw. Returns true if the springs (Integrator::point_springs) changed.
+  /// `same_candidate`: the last re-solve left the solution as it was (a PCG that took no
+  /// iteration), so this is the candidate the last call saw. Returns true if the springs (Integrator::point_springs) changed.
   virtual bool revise(const std::vector<Vec3>& x_new, const std::vector<ProxyNode>& proxies,
                       bool short_of_solve, bool same_candidate) = 0;
 };

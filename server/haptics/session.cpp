@@ -177,7 +177,7 @@ long Session::haptic_ticks(double seconds, double t_start, double period) {
     }
     elapsed = k + 1;
     const double done = haptic_tick(k, woke, t_start);
-    if (done > t_start + (k + 1) * period) count_overrun();
+    count_deadline(woke, done, t_start + (k + 1) * period, period);
   }
   return elapsed;
 }
@@ -200,7 +200,7 @@ long Session::device_paced_ticks(double seconds, double t_start, double period) 
     last = t.at;
     last_sampled = t.sampled;
     const double done = haptic_tick(k, t.at, t_start);
-    if (done > t.at + period) count_overrun();
+    count_deadline(t.at, done, t.at + period, period);
   }
   return std::lround((std::min(mono_now(), end) - t_start) / period);
 }
@@ -262,7 +262,8 @@ std::string SessionReport::to_text() const {
     os << name << "p50 " << x.quantile(0.5) << ", p99 " << x.quantile(0.99) << ", p99.9 "
        << x.quantile(0.999) << ", max " << x.max() << " us\n";
   };
-  // The kernel's late wake-ups skip ticks; overruns are the loop's own (its tick took too long).
+  // Overruns: ticks whose own compute took longer than the period, the loop's own lateness
+  // (the kernel's late wake-ups skip ticks too, but never overrun one).
   os << "haptic ticks     " << haptic.ticks << " (" << missed_deadlines() << " missed deadlines), "
      << haptic.overruns << " of them overran their period\n";
   if (haptic.ticks > 0 && haptic.period_error_us.count() > 0) h("period error     ", haptic.period_error_us);

@@ -51,8 +51,10 @@ struct LoopStats {
   Histogram period_error_us;  ///< |actual wake-up - deadline|
   Histogram compute_us;       ///< time spent in one tick
   std::uint64_t ticks = 0;
-  std::uint64_t missed_deadlines = 0;  ///< ticks skipped after a late wake-up, plus overruns
-  std::uint64_t overruns = 0;          ///< ticks whose own compute ended after the next deadline
+  /// Ticks that ended after the next deadline, and ticks skipped after a late start (a late
+  /// wake-up of the kernel's, or the tick before overrunning).
+  std::uint64_t missed_deadlines = 0;
+  std::uint64_t overruns = 0;  ///< ticks whose own compute took longer than the period
 };
 
 }  // namespace hapticloth::haptics
