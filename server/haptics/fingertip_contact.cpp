@@ -473,10 +473,9 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
   // line search keeps the re-solves from overshooting (Integrator::revise_contacts); contacts
   // released earlier in the step come back with their state (add_contacts, restore_touching).
   // A re-solve that left the solution as it was (a PCG re-solve that took no iteration) hands
-  // back the same candidate: on it, a contact whose
-  // friction the solver cannot resolve (a change under its tolerance) would switch between
-  // sticking and sliding until the free revisions ran out, each switch a re-solve that again
-  // takes no iteration (753 of the 2547 re-solves of the 4050-triangle square's stroke,
+  // back the same candidate: on it, a contact whose friction the solver cannot resolve (a change
+  // under its tolerance) would switch between sticking and sliding until the free revisions ran
+  // out, each switch a re-solve that again takes no iteration (753 of the 2547 re-solves of the 4050-triangle square's stroke,
   // `hapticloth-bench step --script`). So the free revisions end there.
   if (same_candidate) revisions_ = std::max(revisions_, kFreeRevisions);
   const bool settle = revisions_ < kFreeRevisions;

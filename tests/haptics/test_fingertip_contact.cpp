@@ -164,15 +164,34 @@ TEST(FingertipContact, PressOnARigidPlaneFollowsThePressureLaw) {
 // the first step (which sizes the solver's buffers) the contact steps allocate nothing: the
 // broad phase's walk, the contact lists and the re-solves' copies live in memory reserved at
 // construction.
-TEST(FingertipContact, FastStrikeConvergesWithTheClothOutside) {
+// The 0.3 m denim drum (20 x 20 quads) solved with CHOLMOD, two fingertips with friction 0.6.
+struct DrumAndTwoTips {
+  explicit DrumAndTwoTips(double max_force = 0.0) : p(params(max_force)) {}  // 0: no limit
+  static haptics::ContactParams params(double max_force) {
+    haptics::ContactParams c;
+    c.friction = 0.6;
+    c.max_force = max_force;
+    return c;
+  }
+  static cloth::IntegratorConfig two_proxies() {
+    cloth::IntegratorConfig c;
+    c.proxies = 2;
+    return c;
+  }
   const cloth::ClothModel m = test::denim_drum(20, 0.3);
-  cloth::IntegratorConfig cfg;
-  cfg.proxies = 2;
-  cloth::Integrator integ(m, cfg, cloth::make_cholmod_solver());
-  haptics::ContactParams p;
-  p.friction = 0.6;
-  p.max_force = 8.0;
-  haptics::FingertipContact tips(m, m.triangles, 2, p, integ);
+  const cloth::IntegratorConfig cfg = two_proxies();
+  cloth::Integrator integ{m, cfg, cloth::make_cholmod_solver()};
+  const haptics::ContactParams p;
+  haptics::FingertipContact tips{m, m.triangles, 2, p, integ};
+};
+
+TEST(FingertipContact, FastStrikeConvergesWithTheClothOutside) {
+  DrumAndTwoTips rig(8.0);
+  const cloth::ClothModel& m = rig.m;
+  const cloth::IntegratorConfig& cfg = rig.cfg;
+  cloth::Integrator& integ = rig.integ;
+  const haptics::ContactParams& p = rig.p;
+  haptics::FingertipContact& tips = rig.tips;
   cloth::ClothState s = cloth::rest_state(m);
   const haptics::Vec3 v(1.2, 0.4, -1.55);  // m/s, 2 m/s
   haptics::Vec3 at(-0.06, -0.02, 0.03);
@@ -218,14 +237,11 @@ TEST(FingertipContact, FastStrikeConvergesWithTheClothOutside) {
 // (along each contact's normal, so no friction acts). Seen fresh, every contact is released;
 // seen again after a re-solve that took no iteration, nothing changes.
 TEST(FingertipContact, TheSameCandidateEndsTheFreeRevisions) {
-  const cloth::ClothModel m = test::denim_drum(20, 0.3);
-  cloth::IntegratorConfig cfg;
-  cfg.proxies = 2;
-  cloth::Integrator integ(m, cfg, cloth::make_cholmod_solver());
-  haptics::ContactParams p;
-  p.friction = 0.6;
-  haptics::FingertipContact tips(m, m.triangles, 2, p, integ);  // the second finger absent
-  const cloth::ClothState s = cloth::rest_state(m);
+  DrumAndTwoTips rig;  // the second finger absent
+  cloth::Integrator& integ = rig.integ;
+  const haptics::ContactParams& p = rig.p;
+  haptics::FingertipContact& tips = rig.tips;
+  const cloth::ClothState s = cloth::rest_state(rig.m);
   const haptics::Vec3 centre(0.0, 0.0, p.radius - 1e-3);
   std::vector<haptics::Vec3> pulled_off = s.x;
   for (auto& x : pulled_off) x = centre + 1.5 * (x - centre);

@@ -278,23 +278,25 @@ TEST(Haptics, DeviceClockNeedsAStreamingDevice) {
   }
 }
 
+// A 0.5 m flat square of quads x quads, unpinned (the session tests below touch nothing).
+cloth::ClothModel flat_square(int quads) {
+  cloth::GridSpec g;
+  g.width = g.height = 0.5;
+  g.nx = g.ny = quads;
+  g.origin = {-0.25, -0.25, 0.0};
+  return cloth::build_model(cloth::make_grid(g), test::denim(), {});
+}
+
 // The cloth's own time against the session's (SessionReport::cloth_time): on the stepped clock
 // the cloth steps with the ticks and keeps pace; in real time a step far slower than its dt
 // (CHOLMOD on a 4050-triangle cloth: about 10 ms a 1 ms step) leaves the cloth in slow motion
 // against the hand, and the summary says how slow. A small cloth keeps pace in real time.
 TEST(Haptics, ReportsTheClothsTimeAgainstTheSessions) {
-  auto square = [](int quads) {
-    cloth::GridSpec g;
-    g.width = g.height = 0.5;
-    g.nx = g.ny = quads;
-    g.origin = {-0.25, -0.25, 0.0};
-    return cloth::build_model(cloth::make_grid(g), test::denim(), {});
-  };
   const auto away = one_finger({{0.0, Vec3(0.15, 0.15, 0.2)}});  // touches nothing
   haptics::SessionConfig sc;
   sc.try_realtime = false;
   auto rig = [&](int quads) {
-    cloth::ClothModel m = square(quads);
+    cloth::ClothModel m = flat_square(quads);
     const cloth::ClothState start = cloth::rest_state(m);
     return std::make_unique<test::TouchRig>(std::move(m), away, sc, sim_config(), start, "cholmod");
   };
@@ -335,11 +337,7 @@ TEST(Haptics, CountsTheTicksThatOverranTheirPeriod) {
       if (++ticks % 50 == 0) std::this_thread::sleep_for(std::chrono::milliseconds(3));
     }
   };
-  cloth::GridSpec g;
-  g.width = g.height = 0.5;
-  g.nx = g.ny = 6;
-  g.origin = {-0.25, -0.25, 0.0};
-  cloth::ClothModel m = cloth::build_model(cloth::make_grid(g), test::denim(), {});
+  cloth::ClothModel m = flat_square(6);
   const cloth::ClothState start = cloth::rest_state(m);
   haptics::SessionConfig sc;
   sc.try_realtime = false;
