@@ -33,6 +33,13 @@ constexpr double kShortStep = 2e-3;  // s
 // rim of the pinch, where the normal force goes to zero, switching between sticking and
 // sliding as the hanging cloth sways (BENCHMARKS.md, "Force fidelity").
 constexpr double kResolveShare = 1e-2;
+// ... and never for less than this force in all: Weber's law fails near zero, where what a
+// fingertip tells apart is the smallest force it detects at all, 29-44 mN (King, Donlin and
+// Hannaford, "Perceptual thresholds for single vs. multi-finger haptic interaction", 2010). A
+// thirtieth of that keeps a finger under 0.1 N (a light touch, a cloth sliding out of opening
+// fingers) from being solved again for friction changes of tenths of a millinewton, and never
+// binds where 1% of the normal force is more (the stroke's Coulomb check is unchanged).
+constexpr double kResolveFloor = 1e-3;  // N
 }  // namespace
 
 FingertipContact::FingertipContact(const cloth::ClothModel& model,
@@ -495,8 +502,8 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
     // inside the sphere become contacts; Coulomb's law is checked on the solved step. The step
     // is solved again for every new contact, and for released contacts and friction
     // corrections once their forces add up to kResolveShare of the finger's normal force at the
-    // end of the step (smaller ones are applied from the next step on: the contact set and friction
-    // state move with them).
+    // end of the step, and at least kResolveFloor (smaller ones are applied from the next step
+    // on: the contact set and friction state move with them).
     double pulled = 0.0, fchange = 0.0, fscale = 0.0;
     for (Sample& q : F.now) {
       const Vec3 rel = point(x_new, q.tri, q.b) - q.x0 - dp;
@@ -509,7 +516,7 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
         fchange += revise_friction(q, p0, rel, defer);
     }
     const bool added = add_contacts(f, x_new, p0, p1);
-    changed = changed || restored || added || pulled + fchange > kResolveShare * fscale + 1e-6;
+    changed = changed || restored || added || pulled + fchange > std::max(kResolveShare * fscale, kResolveFloor);
   }
   if (!changed) return false;
   for (int f = 0; f < fingers_; ++f) {
