@@ -20,6 +20,9 @@ namespace {
 // first, the stroke's Coulomb error per contact went from p99 2.7% to 3.1% (its friction revised
 // at the line search's points), while the cycling it is for takes many re-solves.
 constexpr int kPlainRevisions = 1;
+// Steps up to this long (direct coupling's; the multirate path's global steps are 5-40 ms)
+// revise their contacts on local settles, confirmed by a whole solve (revise_contacts).
+constexpr double kSettleStep = 2e-3;  // s
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
@@ -629,13 +632,27 @@ bool Integrator::solve(const ClothState& s, double h) {
 // telling the solver which block rows the change touched, and the re-solve is taken as far as
 // the line search allows. The step ends at a solve (the last re-solve taken whole), so the
 // massless proxies are in exact force balance: what the device renders is what the cloth got.
+// A short step whose solver can settle its contacts' rows alone (LinearSolver::
+// settle_changed: the proxies and the vertices they hold, the rest of the cloth held) revises
+// on those settles, and once the contacts ask for nothing more, solves the whole cloth from
+// there and asks them again (confirm_settled). Each whole re-solve of a pinch's release cost
+// about as many iterations as the step's first solve, 5-17, spent on the cloth far from the
+// fingers, while the contacts' decisions are made on the rows they hold
+// (docs/performance.md, "Contacts revised on local settles").
 bool Integrator::revise_contacts(const ClothState& s, double h) {
   released_.clear();
   bool cut = false;  // dv_ is the line search's point short of the re-solve dv_full_
   bool same = false;  // the last re-solve left dv_ as it was (it took no iteration)
+  bool unconfirmed = false;  // dv_ is a settle's: the cloth away from the contacts not solved since
+  const bool settles = h <= kSettleStep && solver_->settles_locally();
   for (int rev = 0; contacts_ && rev < cfg_.max_contact_revisions; ++rev) {
     springs_solved_.assign(springs_.begin(), springs_.end());
-    if (!contacts_->revise(xn_, proxies_, cut, same)) break;
+    if (!contacts_->revise(xn_, proxies_, cut, same)) {
+      if (!unconfirmed) break;
+      if (!confirm_settled(s, h, same)) return false;
+      unconfirmed = cut = false;
+      continue;  // the contacts asked again, on the whole solve
+    }
     ++events_.contact_revisions;
     dv_from_ = dv_;
     const auto t3 = Clock::now();
@@ -646,29 +663,56 @@ bool Integrator::revise_contacts(const ClothState& s, double h) {
     mark_spring_rows(springs_solved_);
     mark_spring_rows(springs_);
     for (int row : spring_rows_) spring_row_marked_[row] = 0;
-    const SolveStatus st = solver_->solve_changed(A_, spring_rows_.data(),
-                                                  static_cast<int>(spring_rows_.size()), rhs_.data(),
-                                                  dv_.data());
+    // The last revision a step may make is solved whole: the step ends at a solve.
+    const bool settle = settles && rev + 1 < cfg_.max_contact_revisions;
+    const int rows = static_cast<int>(spring_rows_.size());
+    const SolveStatus st = settle ? solver_->settle_changed(A_, spring_rows_.data(), rows, rhs_.data(), dv_.data())
+                                  : solver_->solve_changed(A_, spring_rows_.data(), rows, rhs_.data(), dv_.data());
+    events_.contact_settles += settle;
     solver_synced_ = st == SolveStatus::Ok;
     timing_.iterations += solver_->iterations();
     same = dv_ == dv_from_;  // whatever the solver; a PCG guess already within its tolerance
     timing_.solve_ms += ms_since(t3);
-    if (st != SolveStatus::Ok || !dv_.allFinite()) {
-      ++(st == SolveStatus::Ok ? events_.non_finite : events_.solver_not_converged);
-      dv_.setZero();
-      dv_prev_.setZero();
-      return false;
-    }
+    if (!resolved(st)) return false;
     dv_full_ = dv_;
-    // The last re-solve is taken whole: the step ends at a solve.
-    cut = rev >= kPlainRevisions && rev + 1 < cfg_.max_contact_revisions && line_search_contacts(s, h);
+    unconfirmed = settle;
+    // A settle is taken whole (the line search's quadratic holds for a whole solve only).
+    cut = !settle && rev >= kPlainRevisions && rev + 1 < cfg_.max_contact_revisions && line_search_contacts(s, h);
     candidate_state(s, h);
   }
+  if (unconfirmed && !confirm_settled(s, h, same)) return false;
   if (cut) {
     dv_ = dv_full_;
     candidate_state(s, h);
   }
   return true;
+}
+
+// The whole solve after settled revisions: from the settled dv_, every row of the cloth, with
+// the matrix of the last settle (its rows are reloaded); the contacts are then asked on it.
+bool Integrator::confirm_settled(const ClothState& s, double h, bool& same) {
+  ++events_.contact_confirmations;
+  dv_from_ = dv_;
+  const auto t = Clock::now();
+  const SolveStatus st = solver_->resolve(A_, rhs_.data(), dv_.data());
+  solver_synced_ = st == SolveStatus::Ok;
+  timing_.iterations += solver_->iterations();
+  same = dv_ == dv_from_;
+  timing_.solve_ms += ms_since(t);
+  if (!resolved(st)) return false;
+  dv_full_ = dv_;
+  candidate_state(s, h);
+  return true;
+}
+
+// False, with the cause counted and the warm start cleared, if a re-solve failed or left dv_ not
+// finite.
+bool Integrator::resolved(SolveStatus st) {
+  if (st == SolveStatus::Ok && dv_.allFinite()) return true;
+  ++(st == SolveStatus::Ok ? events_.non_finite : events_.solver_not_converged);
+  dv_.setZero();
+  dv_prev_.setZero();
+  return false;
 }
 
 // Depth along its normal of a one-sided spring's point at the end of the step dv (alpha 1: the

@@ -54,6 +54,8 @@ struct IntegratorEvents {
   std::uint64_t restores = 0;             ///< steps abandoned: last good state restored, at rest
   std::uint64_t contact_revisions = 0;    ///< solves repeated because the contact set changed
   std::uint64_t contact_line_cuts = 0;    ///< re-solves the line search took only part of
+  std::uint64_t contact_settles = 0;      ///< of the re-solves, those that settled the contacts' rows alone
+  std::uint64_t contact_confirmations = 0;  ///< whole solves after settles (not re-solves)
   std::uint64_t total() const {
     return non_finite + solver_not_converged + solver_error + not_positive_definite +
            jacobian_fallbacks + energy_explosions + alpha_fallbacks + retries + restores;
@@ -204,6 +206,8 @@ class Integrator {
   double weight_impulse(double h) const;
   bool solve(const ClothState& s, double h);
   bool revise_contacts(const ClothState& s, double h);
+  bool confirm_settled(const ClothState& s, double h, bool& same);
+  bool resolved(SolveStatus st);
   bool line_search_contacts(const ClothState& s, double h);
   double spring_depth(const PointSpring& sp, const ClothState& s, double h,
                       const Eigen::VectorXd& dv) const;

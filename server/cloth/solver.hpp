@@ -40,6 +40,16 @@ class LinearSolver {
     (void)count;
     return solve(A, b, x);
   }
+  /// As solve_changed, but solving only the rows that the changed ones hang on, with the rest of
+  /// x held: PCG's dense block of the hub rows (the fingertip proxies) and the vertices they
+  /// reach. A few microseconds, where a whole re-solve takes as many iterations as a step; the
+  /// contacts decide on that candidate, and the integrator solves the whole system after
+  /// (resolve). Only solvers whose settles_locally() is true implement it.
+  virtual SolveStatus settle_changed(const SymCsr& A, const int* block_rows, int count,
+                                     const double* b, double* x) {
+    return solve_changed(A, block_rows, count, b, x);
+  }
+  virtual bool settles_locally() const { return false; }
   /// A residual size that counts as converged whatever |b| is: an iterative solve stops at
   /// |b - A x| <= tolerance max(|b|, scale) (a direct one ignores it). 0, the default: relative
   /// to |b| alone. The integrator gives the norm of the weight's impulse over its step

@@ -101,28 +101,40 @@ class PcgSolver final : public LinearSolver {
   // is solved again with the double copy (its iterations are the ones reported).
   SolveStatus solve(const SymCsr& A, const double* b, double* x) override {
     float_in_use_ = opt_.single_precision_matrix;
-    if (!float_in_use_) return run(md_, A, b, x, true);
-    std::copy(x, x + n_, guess_.begin());
-    const SolveStatus st = run(mf_, A, b, x, true);
-    if (st != SolveStatus::NotConverged) return st;
-    float_in_use_ = false;
-    ++precision_fallbacks_;
-    std::copy(guess_.begin(), guess_.begin() + n_, x);
-    return run(md_, A, b, x, true);
+    return with_fallback(A, b, x, [&](auto& M) { return run(M, A, b, x, true); });
   }
   // The matrix copy and the preconditioner of the last solve serve again.
   SolveStatus resolve(const SymCsr& A, const double* b, double* x) override {
     if (!prepared_) return solve(A, b, x);
-    return float_in_use_ ? run(mf_, A, b, x, false) : run(md_, A, b, x, false);
+    return with_fallback(A, b, x, [&](auto& M) { return run(M, A, b, x, false); });
   }
-  // The copy in use (the one the last solve prepared) gets the changed rows; the float one
-  // falls back to a whole double solve as solve() does.
+  // The copy in use (the one the last solve prepared) gets the changed rows.
   SolveStatus solve_changed(const SymCsr& A, const int* block_rows, int count, const double* b,
                             double* x) override {
     if (!prepared_) return solve(A, b, x);
-    if (!float_in_use_) return run_changed(md_, A, block_rows, count, b, x);
+    return with_fallback(A, b, x, [&](auto& M) { return run_changed(M, A, block_rows, count, b, x); });
+  }
+  // The changed rows reloaded as for a re-solve, then the cluster settled (settle_cluster) and
+  // no iteration. Before any solve it is a whole solve.
+  SolveStatus settle_changed(const SymCsr& A, const int* block_rows, int count, const double* b,
+                             double* x) override {
+    if (!prepared_) return solve(A, b, x);
+    settle_only_ = true;
+    const SolveStatus st = float_in_use_ ? run_changed(mf_, A, block_rows, count, b, x)
+                                         : run_changed(md_, A, block_rows, count, b, x);
+    settle_only_ = false;
+    return st;
+  }
+  bool settles_locally() const override { return true; }
+
+ private:
+  // f(copy) on the copy in use; a float copy that stalls above the tolerance hands the system
+  // to a whole double solve from the same guess.
+  template <class F>
+  SolveStatus with_fallback(const SymCsr& A, const double* b, double* x, F&& f) {
+    if (!float_in_use_) return f(md_);
     std::copy(x, x + n_, guess_.begin());
-    const SolveStatus st = run_changed(mf_, A, block_rows, count, b, x);
+    const SolveStatus st = f(mf_);
     if (st != SolveStatus::NotConverged) return st;
     float_in_use_ = false;
     ++precision_fallbacks_;
@@ -130,7 +142,6 @@ class PcgSolver final : public LinearSolver {
     return run(md_, A, b, x, true);
   }
 
- private:
   template <class T>
   SolveStatus run(Bsr<T>& M, const SymCsr& A, const double* b, double* x, bool load) {
     iterations_ = 0;
@@ -169,7 +180,18 @@ class PcgSolver final : public LinearSolver {
     if (!ok[0] || !ok[1]) return SolveStatus::NotPositiveDefinite;
     if (!hubs_.empty() && !factor_cluster(M, A)) return SolveStatus::NotPositiveDefinite;
     prepared_ = true;
+    if (settle_only_) return settle(M, b, x);
     return ssor_ ? iterate_ssor(M, b, x, n_, n_ / 3) : iterate(M, b, x, n_, n_ / 3);
+  }
+
+  // settle_changed's solve: the cluster alone, no iteration (residual() is left at 0: the rest
+  // of the rows are not looked at).
+  template <class T>
+  SolveStatus settle(const Bsr<T>& M, const double* b, double* x) {
+    double bn2 = 0.0;
+    if (const auto settled = start(b, x, n_, bn2)) return *settled;
+    settle_cluster(M, b, x, goal_squared(bn2));
+    return SolveStatus::Ok;
   }
 
   // The hub rows' blocks after a change in `rows` (Bsr::reload_hubs, which wants them sorted).
@@ -1075,6 +1097,7 @@ class PcgSolver final : public LinearSolver {
     }
   }
 
+  bool settle_only_ = false;  // run_changed settles the cluster only (settle_changed)
   static constexpr int kMaxCluster = 24;
   static constexpr int kLoadChunks = 8;
   // SSOR: every kRefresh-th iteration the residual is taken afresh from r' (bounding the

@@ -251,6 +251,8 @@ SessionReport Session::report() const {
   }
   r.contact_revisions = sim_->integrator().events().contact_revisions;
   r.contact_line_cuts = sim_->integrator().events().contact_line_cuts;
+  r.contact_settles = sim_->integrator().events().contact_settles;
+  r.contact_confirmations = sim_->integrator().events().contact_confirmations;
   return r;
 }
 
@@ -281,7 +283,8 @@ std::string SessionReport::to_text() const {
      << max_force << " N\n";
   os << "narrow phase     skipped on " << narrow_phase_skipped << " ticks (no finger near the cloth)\n";
   os << "fingertip contact " << contact_samples << " sample-steps, " << contact_revisions
-     << " re-solves (" << contact_line_cuts << " cut short by the line search), deepest cloth point "
+     << " re-solves (" << contact_settles << " settled locally, then " << contact_confirmations
+     << " whole solves; " << contact_line_cuts << " cut short by the line search), deepest cloth point "
      << std::setprecision(3) << max_penetration * 1e3 << " mm inside a fingertip\n"
      << std::setprecision(1);
   if (patch_rebuilds > 0)
@@ -324,6 +327,8 @@ std::string SessionReport::to_json() const {
   j["contact_samples"] = contact_samples;
   j["contact_revisions"] = contact_revisions;
   j["contact_line_cuts"] = contact_line_cuts;
+  j["contact_settles"] = contact_settles;
+  j["contact_confirmations"] = contact_confirmations;
   j["max_penetration_m"] = max_penetration;
   j["late_ticks"] = late_ticks;
   j["passivity_ticks"] = passivity_ticks;

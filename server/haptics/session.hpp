@@ -52,6 +52,8 @@ struct SessionReport {
   /// contact set changed, and the deepest any cloth point got inside a fingertip sphere (m).
   std::uint64_t contact_samples = 0, contact_revisions = 0;
   std::uint64_t contact_line_cuts = 0;  ///< re-solves the active set's line search took only part of
+  /// Re-solves that settled the contacts' rows alone, and the whole solves that confirmed them.
+  std::uint64_t contact_settles = 0, contact_confirmations = 0;
   double max_penetration = 0.0;
   std::uint64_t patch_rebuilds = 0, patch_softened = 0;  ///< local patch builds (4.2)
   /// Snapshots that listed fewer patch candidates than a finger had (SimWorker).

@@ -346,6 +346,36 @@ TEST(Solver, PcgSettlesTheProxiesRowsBeforeItIterates) {
   }
 }
 
+// settle_changed solves the dense block alone (the proxies and the vertices they hold), the rest
+// of the guess held, with no iteration; resolve() then takes the whole system from there to
+// CHOLMOD's answer.
+TEST(Solver, PcgSettleChangedSolvesTheProxiesBlockAlone) {
+  std::mt19937 rng(16);
+  PinchedSheet p(rng);
+  press_triangles(p, {100, 101, 125});
+  const auto [A, b, x_chol] = cholmod_reference(p.system_matrix(), rng);
+  auto pcg = cloth::make_pcg_solver({.tolerance = 1e-8});
+  ASSERT_TRUE(pcg->settles_locally());
+  pcg->analyze(A);
+  std::vector<double> x(A.n, 0.0);
+  ASSERT_EQ(pcg->solve(A, b.data(), x.data()), cloth::SolveStatus::Ok);
+  std::vector<double> guess = x_chol;
+  for (double& v : guess) v *= 0.9;  // off everywhere
+  std::vector<double> settled = guess;
+  const int no_rows = 0;
+  ASSERT_EQ(pcg->settle_changed(A, &no_rows, 0, b.data(), settled.data()), cloth::SolveStatus::Ok);
+  EXPECT_EQ(pcg->iterations(), 0);
+  // The proxies' rows (the last two block rows) are solved with the rest held: their residual
+  // is gone, and a vertex far from the pinch (block row 0) is as it was.
+  std::vector<double> Ax(A.n, 0.0);
+  A.multiply(settled.data(), Ax.data());
+  for (int i = A.n - 6; i < A.n; ++i) EXPECT_NEAR(b[i] - Ax[i], 0.0, 1e-9 * max_abs(b)) << i;
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(settled[i], guess[i]);
+  EXPECT_GT(max_abs_diff(settled, guess), 0.0);
+  ASSERT_EQ(pcg->resolve(A, b.data(), settled.data()), cloth::SolveStatus::Ok);
+  EXPECT_LE(max_abs_diff(settled, x_chol), 1e-6 * max_abs(x_chol));
+}
+
 // Over-relaxed SSOR (omega > 1 on the cloth's rows, the fingertips' block whole) solves the
 // pinched sheet's system to CHOLMOD's answer, its reported residual the true one.
 TEST(Solver, SsorOverRelaxedMatchesCholmod) {

@@ -306,7 +306,12 @@ def _record_and_replay(tmp_path):
         # set off by a twitch of the cloth in one run and shift the window before the pinch.
         fa, fb = series(a, fa0, finger), series(b, fb0, finger)
         common = [k for k in fa if k in fb and PINCH[0] * 1e3 <= k <= PINCH[1] * 1e3]
-        assert len(common) > 1000
+        # Both servers run --fast, ahead of real time, and samples are lost on the way to this
+        # client (the hub and zenoh drop rather than hold up the loops): the replaying run got
+        # 7779-8007 of its 8500 samples in two local runs, and once in CI only 929 of the
+        # window's 1401 ms were in both runs. Half the window is enough for the mean and peak
+        # forces compared below.
+        assert len(common) > 700, len(common)
         ma = [mean([fa[k][i] for k in common]) for i in range(3)]
         mb = [mean([fb[k][i] for k in common]) for i in range(3)]
         pa = max(math.hypot(*fa[k]) for k in common)
