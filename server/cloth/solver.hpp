@@ -42,9 +42,11 @@ class LinearSolver {
   }
   /// As solve_changed, but solving only the rows that the changed ones hang on, with the rest of
   /// x held: PCG's dense block of the hub rows (the fingertip proxies) and the vertices they
-  /// reach. A few microseconds, where a whole re-solve takes as many iterations as a step; the
+  /// reach most strongly (at most 24 nodes in all; a vertex left out of it is held with the
+  /// rest). A few microseconds, where a whole re-solve takes as many iterations as a step; the
   /// contacts decide on that candidate, and the integrator solves the whole system after
-  /// (resolve). Only solvers whose settles_locally() is true implement it.
+  /// (resolve). Only solvers whose settles_locally() is true (after analyze(): PCG with hub
+  /// rows in the pattern) implement it.
   virtual SolveStatus settle_changed(const SymCsr& A, const int* block_rows, int count,
                                      const double* b, double* x) {
     return solve_changed(A, block_rows, count, b, x);

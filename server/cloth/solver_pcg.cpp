@@ -125,7 +125,9 @@ class PcgSolver final : public LinearSolver {
     settle_only_ = false;
     return st;
   }
-  bool settles_locally() const override { return true; }
+  // Only with a dense block to settle: the hub rows (SSOR keeps them always; block-Jacobi with
+  // hub_block).
+  bool settles_locally() const override { return !hubs_.empty(); }
 
  private:
   // f(copy) on the copy in use; a float copy that stalls above the tolerance hands the system
@@ -185,9 +187,10 @@ class PcgSolver final : public LinearSolver {
   }
 
   // settle_changed's solve: the cluster alone, no iteration (residual() is left at 0: the rest
-  // of the rows are not looked at).
+  // of the rows are not looked at). Without a cluster, the whole solve.
   template <class T>
   SolveStatus settle(const Bsr<T>& M, const double* b, double* x) {
+    if (cluster_.empty()) return ssor_ ? iterate_ssor(M, b, x, n_, n_ / 3) : iterate(M, b, x, n_, n_ / 3);
     double bn2 = 0.0;
     if (const auto settled = start(b, x, n_, bn2)) return *settled;
     settle_cluster(M, b, x, goal_squared(bn2));

@@ -477,8 +477,9 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
   // step ends before the samples that the last solve pushed inside are added. A long global
   // step of the multirate path holds its friction state for the whole step and keeps revising
   // it (deferring there let the 20 ms pinch carry 10% less than the weight). The integrator's
-  // line search keeps the re-solves from overshooting (Integrator::revise_contacts); contacts
-  // released earlier in the step come back with their state (add_contacts, restore_touching).
+  // line search keeps whole re-solves from overshooting (Integrator::revise_contacts; a step
+  // revised on local settles has none); contacts released earlier in the step come back with
+  // their state (add_contacts, restore_touching).
   // A re-solve that left the solution as it was (a PCG re-solve that took no iteration) hands
   // back the same candidate: on it, a contact whose friction the solver cannot resolve (a change
   // under its tolerance) would switch between sticking and sliding until the free revisions ran
