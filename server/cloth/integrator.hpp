@@ -1,6 +1,7 @@
 // Generalized semi-implicit Euler integration (section 3.3.3, eqs. 8-9) with blow-up recovery.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <utility>
@@ -207,6 +208,7 @@ class Integrator {
   bool solve(const ClothState& s, double h);
   bool revise_contacts(const ClothState& s, double h);
   bool confirm_settled(const ClothState& s, double h, bool& same);
+  bool took_resolve(SolveStatus st, std::chrono::steady_clock::time_point t0, bool& same);
   bool resolved(SolveStatus st);
   bool line_search_contacts(const ClothState& s, double h);
   double spring_depth(const PointSpring& sp, const ClothState& s, double h,

@@ -119,11 +119,7 @@ class PcgSolver final : public LinearSolver {
   SolveStatus settle_changed(const SymCsr& A, const int* block_rows, int count, const double* b,
                              double* x) override {
     if (!prepared_) return solve(A, b, x);
-    settle_only_ = true;
-    const SolveStatus st = float_in_use_ ? run_changed(mf_, A, block_rows, count, b, x)
-                                         : run_changed(md_, A, block_rows, count, b, x);
-    settle_only_ = false;
-    return st;
+    return with_fallback(A, b, x, [&](auto& M) { return settle(M, A, block_rows, count, b, x); });
   }
   // Only with a dense block to settle: the hub rows (SSOR keeps them always; block-Jacobi with
   // hub_block).
@@ -148,9 +144,8 @@ class PcgSolver final : public LinearSolver {
   SolveStatus run(Bsr<T>& M, const SymCsr& A, const double* b, double* x, bool load) {
     iterations_ = 0;
     residual_ = 0.0;
-    const int n = n_, nb = n_ / 3;
     if (load && !prepare(M, A)) return SolveStatus::NotPositiveDefinite;
-    return ssor_ ? iterate_ssor(M, b, x, n, nb) : iterate(M, b, x, n, nb);
+    return iterate_any(M, b, x);
   }
 
   // A re-solve after a change in a few block rows: those rows reloaded and re-preconditioned,
@@ -159,6 +154,14 @@ class PcgSolver final : public LinearSolver {
   template <class T>
   SolveStatus run_changed(Bsr<T>& M, const SymCsr& A, const int* rows, int count, const double* b,
                           double* x) {
+    if (!reload_changed(M, A, rows, count)) return SolveStatus::NotPositiveDefinite;
+    return iterate_any(M, b, x);
+  }
+
+  // The listed rows reloaded and re-preconditioned, the hubs' blocks reloaded and the cluster
+  // factored again; false if a block is not positive definite.
+  template <class T>
+  bool reload_changed(Bsr<T>& M, const SymCsr& A, const int* rows, int count) {
     iterations_ = 0;
     residual_ = 0.0;
     prepared_ = false;
@@ -179,18 +182,25 @@ class PcgSolver final : public LinearSolver {
       ok[c] = pd;
     };
     in_parallel(3, piece);
-    if (!ok[0] || !ok[1]) return SolveStatus::NotPositiveDefinite;
-    if (!hubs_.empty() && !factor_cluster(M, A)) return SolveStatus::NotPositiveDefinite;
+    if (!ok[0] || !ok[1]) return false;
+    if (!hubs_.empty() && !factor_cluster(M, A)) return false;
     prepared_ = true;
-    if (settle_only_) return settle(M, b, x);
+    return true;
+  }
+
+  // The preconditioner's PCG from the guess in x.
+  template <class T>
+  SolveStatus iterate_any(const Bsr<T>& M, const double* b, double* x) {
     return ssor_ ? iterate_ssor(M, b, x, n_, n_ / 3) : iterate(M, b, x, n_, n_ / 3);
   }
 
-  // settle_changed's solve: the cluster alone, no iteration (residual() is left at 0: the rest
-  // of the rows are not looked at). Without a cluster, the whole solve.
+  // settle_changed's solve: the changed rows reloaded, then the cluster alone, no iteration
+  // (residual() is left at 0: the rest of the rows are not looked at). Without a cluster, the
+  // whole solve.
   template <class T>
-  SolveStatus settle(const Bsr<T>& M, const double* b, double* x) {
-    if (cluster_.empty()) return ssor_ ? iterate_ssor(M, b, x, n_, n_ / 3) : iterate(M, b, x, n_, n_ / 3);
+  SolveStatus settle(Bsr<T>& M, const SymCsr& A, const int* rows, int count, const double* b, double* x) {
+    if (!reload_changed(M, A, rows, count)) return SolveStatus::NotPositiveDefinite;
+    if (cluster_.empty()) return iterate_any(M, b, x);
     double bn2 = 0.0;
     if (const auto settled = start(b, x, n_, bn2)) return *settled;
     settle_cluster(M, b, x, goal_squared(bn2));
@@ -1100,7 +1110,6 @@ class PcgSolver final : public LinearSolver {
     }
   }
 
-  bool settle_only_ = false;  // run_changed settles the cluster only (settle_changed)
   static constexpr int kMaxCluster = 24;
   static constexpr int kLoadChunks = 8;
   // SSOR: every kRefresh-th iteration the residual is taken afresh from r' (bounding the
