@@ -44,6 +44,8 @@ RunSummary run_headless(const Scene& scene, long steps) {
   r.scene = scene.name;
   r.solver = integ->solver().name();
   if (r.solver == "pcg") r.preconditioner = cloth::to_string(scene.pcg.preconditioner);
+  r.simd = cloth::to_string(integ->simd_level());
+  r.lanes = integ->lanes();
   r.triangles = model.num_triangles();
   r.vertices = model.num_vertices();
   r.dt = scene.integrator.dt;
@@ -83,6 +85,8 @@ std::string RunSummary::to_json() const {
   j["scene"] = scene;
   j["solver"] = solver;
   if (!preconditioner.empty()) j["preconditioner"] = preconditioner;
+  j["simd"] = simd;
+  j["lanes"] = lanes;
   j["triangles"] = triangles;
   j["vertices"] = vertices;
   j["dt"] = dt;
@@ -111,6 +115,7 @@ std::string RunSummary::to_text() const {
   os << "integrator       dt " << std::setprecision(4) << dt * 1e3 << " ms, alpha "
      << std::setprecision(2) << alpha << ", solver " << solver
      << (preconditioner.empty() ? "" : " (" + preconditioner + ")") << "\n";
+  os << "element pass     " << simd << ", " << lanes << " lanes\n";
   os << "steps            " << steps << " (" << std::setprecision(3) << simulated_s
      << " s simulated in " << wall_s << " s)\n";
   os << "ms per step      median " << std::setprecision(4) << step_ms.median << ", p99 "

@@ -19,6 +19,8 @@ Percentiles percentiles(std::vector<double> v);
 struct RunSummary {
   std::string scene, solver;
   std::string preconditioner;  ///< the PCG's ("ssor", "block-jacobi"); empty for a direct solver
+  std::string simd;            ///< the element pass's instruction level (cloth/simd_level.hpp)
+  int lanes = 0;               ///< and the doubles in its lanes
   int triangles = 0, vertices = 0;
   double dt = 0, alpha = 0, simulated_s = 0;
   long steps = 0;

@@ -64,6 +64,10 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
       a << " < 1 asked for, alpha 1 used for the fingertips' stiff contacts (docs/contact.md)";
     s.push_back(a.str());
   }
+  const cloth::SimdLevel level = sc.integrator.simd ? *sc.integrator.simd : cloth::best_level();
+  s.push_back(std::string("element pass on ") + cloth::to_string(level) + ", lanes of " +
+              std::to_string(cloth::element_kernels(level).lanes) + " doubles (" +
+              (sc.integrator.simd ? "asked for" : "the widest level this CPU runs") + ")");
   s.push_back(sc.material.viscous() ? "strain-rate (viscous) terms on: the material has viscosity"
                                     : "strain-rate terms off: the material has no viscosity");
   s.push_back(m.pins_count() > 0 ? "pinned vertices: " + std::to_string(m.pins_count()) + " move kinematically"

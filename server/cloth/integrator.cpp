@@ -8,10 +8,6 @@
 #include <stdexcept>
 #include <string>
 
-#if defined(__AVX512F__) && defined(__AVX512VL__)
-#include <immintrin.h>
-#endif
-
 namespace hapticloth::cloth {
 
 namespace {
@@ -34,64 +30,28 @@ inline void add_block(double* val, int offset, int stride, const Mat3& B) {
     for (int c = 0; c < 3; ++c) val[offset + r * stride + c] += B(r, c);
 }
 
-// Adds a row-major 3x3 block B to the values at `dst` whose rows are `stride` apart: three
-// contiguous doubles a row, one masked vector each with AVX-512 (the fourth value may be another
-// thread's row, so it is neither read nor written).
-inline void add_block_rows(double* dst, int stride, const double* B) {
-  for (int r = 0; r < 3; ++r, dst += stride) {
-#if defined(__AVX512F__) && defined(__AVX512VL__)
-    const __m256d a = _mm256_maskz_loadu_pd(0x7, dst), b = _mm256_maskz_loadu_pd(0x7, B + 3 * r);
-    _mm256_mask_storeu_pd(dst, 0x7, _mm256_add_pd(a, b));
-#else
-    for (int c = 0; c < 3; ++c) dst[c] += B[3 * r + c];
-#endif
-  }
-}
-
 }  // namespace
 
-// One pass over the cloth for eq. 9: the elements kLanes at a time (element_lanes.hpp): forces,
-// the factored Jacobians, the system blocks alpha^2 h^2 H_kl + alpha h C_kl scattered into the
-// CSR values, and the right-hand side h (F - alpha h H v); and the vertices' own terms
-// (vertex_terms). `keep`: the matrix in hand is kept, and only the blocks of the elements whose
-// factors moved are added, as the blocks of the factors' change (KeptMatrix). Returns the
-// cloth's energies at the start of the step.
-template <bool kViscous, bool kSpd>
-Integrator::ClothEnergy Integrator::assemble_cloth(const ClothState& s, double h, bool keep) {
-  const StepFactors factors{h, alpha_};
-  // Part `part`'s groups (the last part: groups_, the caller's alone).
-  const auto pass = [&](const std::vector<ElementGroup>& groups, int part) {
-    ElementTerms terms;  // 5 kB and 7 kB on the stack of whichever thread runs the pass
-    LaneBlocks blocks;
-    double energy = 0.0;
-    int refreshed = 0;
-    for (int i = 0; i < static_cast<int>(groups.size()); ++i) {
-      const ElementGroup& g = groups[i];
-      element_terms<kViscous, kSpd>(g, model_.material, s.x.data(), s.v.data(), factors, terms);
-      unsigned lanes = (1u << g.count) - 1;
-      if (keep)
-        lanes = kept_->take_changes(part, i, g.count, terms);
-      else
-        kept_->keep_factors(part, i, terms);
-      if (lanes) {
-        system_blocks(g, terms.factor, terms.block);
-        lane_blocks(terms, blocks);
-      }
-      energy += scatter_terms(g, terms, blocks, lanes, keep ? part : -1);
-      refreshed += __builtin_popcount(lanes);
-    }
-    part_refreshed_[part] = refreshed;
-    return energy;
-  };
+// One pass over the cloth for eq. 9: the element pass (ElementPass, at the instruction level
+// in use) forms each element's forces, factored Jacobian, system blocks
+// alpha^2 h^2 H_kl + alpha h C_kl and right-hand side h (F - alpha h H v) into the CSR values;
+// vertex_terms adds the vertices' own terms. `keep`: the matrix in hand is kept, and only the
+// blocks of the elements whose factors moved are added, as the blocks of the factors' change
+// (KeptMatrix). Returns the cloth's energies at the start of the step.
+Integrator::ClothEnergy Integrator::assemble_cloth(const ClothState& s, double h, bool keep, bool spd) {
+  const PassInput in{&model_.material, s.x.data(), s.v.data(), StepFactors{h, alpha_}, viscous_, spd};
+  const PassTarget out{A_.val.data(), rhs_.data(), model_.free_index.data(), sys_.block_offset.data(),
+                       sys_.row_stride.data()};
+  const auto pass = [&](int part) { return pass_->run(part, in, out, *kept_, keep, part_refreshed_[part]); };
   const int rest = static_cast<int>(part_free_.size()) - 1;
   if (!pool_) {
     if (!keep) std::memset(A_.val.data(), 0, sizeof(double) * A_.val.size());
-    const double elastic = pass(groups_, rest);
+    const double elastic = pass(rest);
     ClothEnergy e = vertex_terms(s, h, rest, keep);
     e.elastic = elastic;
     return e;
   }
-  // Two threads: the parts at once (disjoint rows), then the separators (groups_); the energy
+  // Two threads: the parts at once (disjoint rows), then the separators (the rest); the energy
   // summed in the same order whichever thread took a part. Each part's rows are cleared, and
   // its vertices' terms added, by the thread that assembles its elements, so that they are in
   // its core's cache (zero_spans_, part_free_); the caller takes the rest's first.
@@ -99,17 +59,17 @@ Integrator::ClothEnergy Integrator::assemble_cloth(const ClothState& s, double h
   ClothEnergy e = vertex_terms(s, h, rest, keep);
   auto part = [&](int p) {
     if (!keep) clear_rows(zero_spans_[p]);
-    const double elastic = pass(part_groups_[p], p);
+    const double elastic = pass(p);
     part_energy_[p] = vertex_terms(s, h, p, keep);
     part_energy_[p].elastic = elastic;
   };
-  pool_->run(static_cast<int>(part_groups_.size()), part);
+  pool_->run(rest, part);
   for (const ClothEnergy& pe : part_energy_) {
     e.elastic += pe.elastic;
     e.kinetic += pe.kinetic;
     e.gravity += pe.gravity;
   }
-  e.elastic += pass(groups_, rest);
+  e.elastic += pass(rest);
   return e;
 }
 
@@ -153,40 +113,6 @@ Integrator::ClothEnergy Integrator::vertex_terms(const ClothState& s, double h, 
   return e;
 }
 
-// A group's terms at its elements' free vertices (pinned ones have no row): the right-hand
-// sides, the blocks (k, l) for k <= l, and (l, k) as their transposes, row by row
-// (add_block_rows, from lane_blocks: the same sums in the same order as entry by entry); the
-// blocks of the lanes in `lanes` only (bit l: lane l), whose rows a kept matrix marks changed
-// (mark_part >= 0: the assembly part whose thread runs it). Returns the group's elastic energy.
-double Integrator::scatter_terms(const ElementGroup& g, const ElementTerms& terms, const LaneBlocks& blocks,
-                                 unsigned lanes, int mark_part) {
-  double* const Aval = A_.val.data();
-  double* const rhs = rhs_.data();
-  const int* const free_index = model_.free_index.data();
-  double energy = 0.0;
-  for (int lane = 0; lane < g.count; ++lane) {
-    energy += terms.energy[lane];
-    int fk[3];
-    for (int k = 0; k < 3; ++k) {
-      fk[k] = free_index[g.v[k][lane]];
-      if (fk[k] < 0) continue;
-      for (int r = 0; r < 3; ++r) rhs[3 * fk[k] + r] += terms.rhs[k][r][lane];
-    }
-    if (!(lanes >> lane & 1u)) continue;
-    const auto& off = sys_.block_offset[g.t[lane]];
-    for (int k = 0; k < 3; ++k) {
-      if (fk[k] < 0) continue;
-      if (mark_part >= 0) kept_->mark(mark_part, fk[k]);
-      for (int l = k; l < 3; ++l) {
-        if (fk[l] < 0) continue;
-        const int p = kPair[k][l];
-        add_block_rows(Aval + off[k * 3 + l], sys_.row_stride[fk[k]], blocks.rows[p][lane]);
-        if (l != k) add_block_rows(Aval + off[l * 3 + k], sys_.row_stride[fk[l]], blocks.rows_t[p][lane]);
-      }
-    }
-  }
-  return energy;
-}
 
 void IntegratorConfig::validate() const {
   auto bad = [](const std::string& f, const std::string& why) {
@@ -200,6 +126,9 @@ void IntegratorConfig::validate() const {
   if (assembly_threads < 1 || assembly_threads > 2) bad("threads", "must be 1 or 2");
   if (!(explosion_ratio > 0.0)) bad("explosion_ratio", "must be > 0");
   if (!(matrix_refresh >= 0.0 && matrix_refresh < 1.0)) bad("matrix_refresh", "must be in [0, 1)");
+  if (simd && !runs_here(*simd))
+    bad("simd", std::string(to_string(*simd)) + " is not an instruction level this CPU runs (it runs " +
+                    to_string(best_level()) + ")");
 }
 
 Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
@@ -212,28 +141,29 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
   if (cfg_.proxies < 0 || cfg_.proxies > 16)
     throw std::invalid_argument("integrator.proxies: must be in [0, 16]");
   sys_ = build_pattern(model_, cfg_.proxies);
+  const ElementKernels& kernels = element_kernels(cfg_.simd ? *cfg_.simd : best_level());
+  simd_ = kernels.level;
+  lanes_ = kernels.lanes;
+  std::vector<std::vector<int>> parts;  // the element pass's parts, the caller's alone last
   if (cfg_.assembly_threads > 1 && model_.num_triangles() >= kMinParallelElements) {
     // Four parts for two threads: whichever thread is free takes the next, so a helper that
     // wakes late (or is preempted) costs part of a part, not half the assembly.
     const ElementPartition partition = partition_elements(model_.elements, model_.rest_positions, 4);
-    for (const auto& p : partition.parts) part_groups_.push_back(group_elements(model_.elements, p));
-    groups_ = group_elements(model_.elements, partition.separators);
-    part_energy_.assign(part_groups_.size(), ClothEnergy{});
+    parts = partition.parts;
+    parts.push_back(partition.separators);
+    part_energy_.assign(partition.parts.size(), ClothEnergy{});
     plan_clearing(partition);
     pool_ = std::make_unique<WorkerPool>();
     solver_->use_pool(pool_.get());
   } else {
-    std::vector<int> all(model_.num_triangles());
-    std::iota(all.begin(), all.end(), 0);
-    groups_ = group_elements(model_.elements, all);
+    parts.emplace_back(model_.num_triangles());
+    std::iota(parts[0].begin(), parts[0].end(), 0);
     part_free_.assign(1, std::vector<int>(model_.num_free()));
     std::iota(part_free_[0].begin(), part_free_[0].end(), 0);
   }
-  std::vector<int> group_counts;
-  for (const auto& groups : part_groups_) group_counts.push_back(static_cast<int>(groups.size()));
-  group_counts.push_back(static_cast<int>(groups_.size()));
-  kept_ = std::make_unique<KeptMatrix>(cfg_.matrix_refresh, group_counts, sys_.csr.n / 3);
-  part_refreshed_.assign(group_counts.size(), 0);
+  pass_ = kernels.make_pass(model_.elements, parts);
+  kept_ = std::make_unique<KeptMatrix>(cfg_.matrix_refresh, static_cast<int>(parts.size()), sys_.csr.n / 3);
+  part_refreshed_.assign(parts.size(), 0);
   A_ = sys_.csr;
   double m2 = 0.0;
   for (int v : model_.free_vertices) m2 += model_.mass[v] * model_.mass[v];
@@ -332,8 +262,7 @@ bool Integrator::assemble(const ClothState& s, double h, JacobianMode mode) {
   const bool keep = kept_->keeps(h, alpha_, mode);
   if (keep) take_out_springs(h);
   const bool spd = mode == JacobianMode::Spd;
-  const ClothEnergy e = viscous_ ? (spd ? assemble_cloth<true, true>(s, h, keep) : assemble_cloth<true, false>(s, h, keep))
-                                 : (spd ? assemble_cloth<false, true>(s, h, keep) : assemble_cloth<false, false>(s, h, keep));
+  const ClothEnergy e = assemble_cloth(s, h, keep, spd);
   for (int n : part_refreshed_) timing_.refreshed_elements += n;
   timing_.whole_assemblies += !keep;
   const double ke = e.kinetic, e_el = e.elastic, eg = e.gravity;

@@ -4,12 +4,13 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <utility>
 #include <vector>
 
 #include <Eigen/Core>
 
-#include "cloth/element_lanes.hpp"
+#include "cloth/element_pass.hpp"
 #include "cloth/element_partition.hpp"
 #include "cloth/kept_matrix.hpp"
 #include "cloth/model.hpp"
@@ -37,6 +38,8 @@ struct IntegratorConfig {
   /// were last formed; 0 forms every block every step. Forces and the right-hand side are exact
   /// either way.
   double matrix_refresh = 1e-4;
+  /// The instruction level of the element pass (simd_level.hpp); none: the widest this CPU runs.
+  std::optional<SimdLevel> simd = std::nullopt;
 
   /// Throws std::invalid_argument naming the offending field.
   void validate() const;
@@ -187,6 +190,9 @@ class Integrator {
 
   const IntegratorEvents& events() const { return events_; }
   const StepTiming& last_timing() const { return timing_; }
+  /// The element pass's instruction level and the doubles in its lanes.
+  SimdLevel simd_level() const { return simd_; }
+  int lanes() const { return lanes_; }
   const IntegratorConfig& config() const { return cfg_; }
   const LinearSolver& solver() const { return *solver_; }
   const ClothModel& model() const { return model_; }
@@ -227,11 +233,8 @@ class Integrator {
   struct ClothEnergy {
     double elastic = 0.0, kinetic = 0.0, gravity = 0.0;  // J
   };
-  template <bool kViscous, bool kSpd>
-  ClothEnergy assemble_cloth(const ClothState& s, double h, bool keep);
+  ClothEnergy assemble_cloth(const ClothState& s, double h, bool keep, bool spd);
   ClothEnergy vertex_terms(const ClothState& s, double h, int part, bool keep);
-  double scatter_terms(const ElementGroup& g, const ElementTerms& terms, const LaneBlocks& blocks,
-                       unsigned lanes, int mark_part);
   void take_out_springs(double h);
   void mark_proxy_rows();
   void plan_clearing(const ElementPartition& partition);
@@ -285,10 +288,12 @@ class Integrator {
   double free_mass_norm_ = 0.0;  // |m| over the free vertices, kg (weight_impulse)
   std::vector<Eigen::VectorXd> response_;  // proxy_response(): A^-1 e per proxy dof (warm starts)
   Eigen::VectorXd unit_;
-  // The elements in groups of kLanes (assemble_cloth): all of them, or with two threads
-  // (assembly_threads 2) the parts' and, in groups_, the separators; the parts' energies.
-  std::vector<ElementGroup> groups_;
-  std::vector<std::vector<ElementGroup>> part_groups_;
+  // The element pass (assemble_cloth) at the instruction level in use: all the elements as one
+  // part, or with two threads (assembly_threads 2) the parts and, last, the separators; the
+  // parts' energies.
+  std::unique_ptr<ElementPass> pass_;
+  SimdLevel simd_ = SimdLevel::Baseline;
+  int lanes_ = 0;
   std::vector<ClothEnergy> part_energy_;
   std::vector<std::vector<std::pair<int, int>>> zero_spans_;  // plan_clearing
   std::vector<std::vector<int>> part_free_;  // plan_clearing; on one thread all, as one "rest"

@@ -16,7 +16,6 @@
 #include <vector>
 
 #include "cloth/element.hpp"
-#include "cloth/element_lanes.hpp"
 
 namespace hapticloth::cloth {
 
@@ -25,11 +24,15 @@ class KeptMatrix {
   /// Assemblies between two formed whole: bounds the rounding that the kept sums gather.
   static constexpr int kFullEvery = 1000;
 
-  /// `group_counts`: the groups of each assembly part (the last: the groups the calling thread
-  /// runs alone); `block_rows`: the system's block rows.
-  KeptMatrix(double tolerance, const std::vector<int>& group_counts, int block_rows);
+  /// `parts`: the assembly parts (the last: the elements the calling thread runs alone);
+  /// `block_rows`: the system's block rows. The factors themselves are the element pass's
+  /// (ElementPass::run), in its lanes.
+  KeptMatrix(double tolerance, int parts, int block_rows);
 
   bool enabled() const { return tolerance_ > 0.0; }
+  /// An element's blocks are formed anew when its factors moved by more than this fraction of
+  /// their largest entry.
+  double tolerance() const { return tolerance_; }
   /// Whether the matrix in hand may be kept for a step h at alpha in `mode`: it was formed for
   /// the same three, and not too long ago.
   bool keeps(double h, double alpha, JacobianMode mode) const;
@@ -38,31 +41,22 @@ class KeptMatrix {
   /// The matrix in hand no longer holds the kept sums (a failed assembly).
   void invalidate() { valid_ = false; }
 
-  /// A full assembly: group `g` of `part` keeps the factors it forms now.
-  void keep_factors(int part, int g, const ElementTerms& terms);
-  /// A kept step: the lanes of group `g` of `part` whose factors moved by more than the
-  /// tolerance of their largest entry (or are not finite) take the new ones, and
-  /// `terms.factor` becomes their difference (zero in the other lanes). Returns those lanes
-  /// as bits (lane l: bit l), of the group's first `count`.
-  unsigned take_changes(int part, int g, int count, ElementTerms& terms);
-
-  /// Block row `row` changed in this assembly; a part's thread marks only its own rows.
+  /// Block row `row` changed in this assembly; a part's thread marks only its own rows. (A
+  /// fixed array and a count, not push_back: the element pass of every instruction level calls
+  /// it, and no library code may be compiled inside a level's translation unit.)
   void mark(int part, int row) {
     if (changed_[row]) return;
     changed_[row] = 1;
-    part_rows_[part].push_back(row);
+    part_rows_[part][part_count_[part]++] = row;
   }
   /// The rows marked since the last call, each once, and the marks cleared.
   const std::vector<int>& take_changed_rows();
 
  private:
-  struct Factors {
-    Lanes f[kFactors];
-  };
   double tolerance_;
-  std::vector<std::vector<Factors>> kept_;  // per part, per group
   std::vector<char> changed_;               // per block row
-  std::vector<std::vector<int>> part_rows_;
+  std::vector<std::vector<int>> part_rows_;  // per part: block_rows entries, part_count_ used
+  std::vector<int> part_count_;
   std::vector<int> rows_;
   bool valid_ = false;
   double h_ = 0.0, alpha_ = 0.0;

@@ -303,14 +303,18 @@ TEST(IntegratorConfig, RejectsBadSettings) {
 // The integrator's fused element pass (forces, factored Jacobians, system blocks and
 // right-hand side in one sweep) against eq. 9 assembled densely from evaluate_element's 3x3
 // blocks, which the finite-difference tests check. Random deformed states, some vertices
-// pinned, with and without viscosity, both Jacobian modes, and an external force.
-struct FusedAssembly : ::testing::TestWithParam<std::tuple<double, cloth::JacobianMode>> {};
+// pinned, with and without viscosity, both Jacobian modes, and an external force; at every
+// instruction level this CPU runs (the lanes' scatter and its transposes differ by level).
+struct FusedAssembly
+    : ::testing::TestWithParam<std::tuple<double, cloth::JacobianMode, cloth::SimdLevel>> {};
 
 TEST_P(FusedAssembly, EqualsReferenceBuiltFromElementBlocks) {
-  const auto [viscosity, mode] = GetParam();
+  const auto [viscosity, mode, level] = GetParam();
+  if (!cloth::runs_here(level)) GTEST_SKIP() << cloth::to_string(level) << ": this CPU lacks its instructions";
   const cloth::Material mat = test::denim(viscosity);
   const cloth::ClothModel m = vertical_sheet(mat, 5);
   cloth::IntegratorConfig cfg;
+  cfg.simd = level;
   cfg.alpha = 0.7;
   cfg.air_damping = 0.3;
   cloth::Integrator integ(m, cfg, cloth::make_cholmod_solver());
@@ -371,9 +375,11 @@ TEST_P(FusedAssembly, EqualsReferenceBuiltFromElementBlocks) {
 }
 
 INSTANTIATE_TEST_SUITE_P(
-    ViscosityAndMode, FusedAssembly,
+    ViscosityModeAndLevel, FusedAssembly,
     ::testing::Combine(::testing::Values(0.0, 0.05),
-                       ::testing::Values(cloth::JacobianMode::Spd, cloth::JacobianMode::Exact)));
+                       ::testing::Values(cloth::JacobianMode::Spd, cloth::JacobianMode::Exact),
+                       ::testing::Values(cloth::SimdLevel::Baseline, cloth::SimdLevel::Avx2,
+                                         cloth::SimdLevel::Avx512)));
 
 // Two-thread assembly (assembly_threads 2: element parts on the helper and the caller, then the
 // separators) gives the one-thread system to rounding, and steps without allocating. A 40 x 40

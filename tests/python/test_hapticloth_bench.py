@@ -315,3 +315,40 @@ def test_limit_quick():
     for r in j["rows"]:
         assert r["cholmod_simplicial"]["ok"] and r["cholmod_supernodal"]["ok"]
         assert r["cholmod_simplicial"]["nnz_L"] >= r["nnz_A"] / 2
+
+
+def cpu_has(flag: str) -> bool:
+    return flag in Path("/proc/cpuinfo").read_text().split()
+
+
+LEVEL_FLAGS = {"baseline": [], "avx2": ["avx2", "fma"], "avx512": ["avx512f", "avx512bw", "avx512dq", "avx512vl"]}
+
+
+def test_step_names_its_level_and_every_level_steps_the_same_cloth():
+    """`step --simd LEVEL` runs the element pass at that level (its lanes in the JSON), the default
+    is the widest level the CPU has, and every level gives the same cloth to the last bit (the
+    level units are compiled without FMA contraction: docs/performance.md)."""
+    here = [lv for lv, flags in LEVEL_FLAGS.items() if all(cpu_has(f) for f in flags)]
+    default = bench("step", "--scene", str(SCENE), "--steps", "200")
+    assert default["simd"] == here[-1]
+    lowest = {}
+    for lv in here:
+        j = bench("step", "--scene", str(SCENE), "--steps", "200", "--simd", lv)
+        assert j["simd"] == lv and j["lanes"] == {"baseline": 2, "avx2": 4, "avx512": 8}[lv]
+        lowest[lv] = j["lowest_vertex_height_m"]
+    assert len(set(lowest.values())) == 1, lowest
+    assert lowest[here[-1]] == default["lowest_vertex_height_m"]
+
+
+def test_step_refuses_a_level_it_cannot_run():
+    """An unknown level is refused by the option's check; a level the CPU lacks, with the CPU's
+    own best level named (exit 2 either way, never SIGILL)."""
+    r = subprocess.run([str(program("hapticloth-bench")), "step", "--scene", str(SCENE), "--simd", "sse9"],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "--simd" in r.stderr, r.stderr
+    lacking = [lv for lv, flags in LEVEL_FLAGS.items() if not all(cpu_has(f) for f in flags)]
+    if not lacking:
+        pytest.skip("this CPU runs every level")
+    r = subprocess.run([str(program("hapticloth-bench")), "step", "--scene", str(SCENE), "--simd", lacking[0]],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "lacks" in r.stderr, r.stderr

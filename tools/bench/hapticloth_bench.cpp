@@ -1,6 +1,7 @@
 // hapticloth-bench: benchmarks that print machine-readable results.
 //   hapticloth-bench step --scene FILE [--solver cholmod|pcg] [--dt S] [--alpha A] [--steps N] [--threads 1|2]
 //                         [--pcg-preconditioner ssor|block-jacobi] [--pcg-omega W] [--matrix-refresh R]
+//                         [--simd baseline|avx2|avx512]
 //                         [--pinch [--settle S]] --json
 //   hapticloth-bench haptic [--scene FILE] [--duration S] --json
 //   hapticloth-bench haptic --subscribers N [--duration S] [--cloth-rate HZ] --json
@@ -129,7 +130,7 @@ int main(int argc, char** argv) {
   step->add_option("--pcg-tolerance", tol, "relative residual of the PCG solve")
       ->check(opts::number_in(0.0, 1.0, true));
   step->add_option("--steps", steps, "number of steps from the rest state")->check(CLI::Range(1L, 100000000L));
-  std::string preconditioner;
+  std::string preconditioner, simd;
   step->add_option("--pcg-preconditioner", preconditioner, "ssor or block-jacobi (default: the scene's)")
       ->check(CLI::IsMember({"ssor", "block-jacobi"}));
   double omega = 0;
@@ -143,6 +144,9 @@ int main(int argc, char** argv) {
   int threads = 0;
   step->add_option("--threads", threads, "threads of the element assembly, 1 or 2 (default: the scene's)")
       ->check(CLI::Range(1, 2));
+  step->add_option("--simd", simd, "instruction level of the element pass: baseline, avx2 or avx512 "
+                   "(default: the widest this CPU runs); a level the CPU lacks is refused")
+      ->check(CLI::IsMember({"baseline", "avx2", "avx512"}));
   step->add_flag("--json", json, "one JSON object on stdout");
   bool pinch = false;
   auto* pinch_flag = step->add_flag("--pinch", pinch, "both fingertips pinch the cloth's middle (direct coupling, "
@@ -289,6 +293,15 @@ int main(int argc, char** argv) {
     if (omega > 0) scene.pcg.ssor_omega = omega;
     if (threads > 0) scene.integrator.assembly_threads = threads;
     if (refresh >= 0) scene.integrator.matrix_refresh = refresh;
+    if (!simd.empty()) {
+      const cloth::SimdLevel level = *cloth::parse_simd_level(simd);
+      if (!cloth::runs_here(level)) {
+        std::cerr << "hapticloth-bench: --simd " << simd << ": this CPU lacks its instructions (it runs "
+                  << cloth::to_string(cloth::best_level()) << ")\n";
+        return 2;
+      }
+      scene.integrator.simd = level;
+    }
     scene.integrator.validate();
     if (script) {
       std::cout << bench::script_step(scene).dump(json ? -1 : 1) << "\n";
