@@ -321,7 +321,10 @@ def cpu_has(flag: str) -> bool:
     return flag in Path("/proc/cpuinfo").read_text().split()
 
 
-LEVEL_FLAGS = {"baseline": [], "avx2": ["avx2", "fma"], "avx512": ["avx512f", "avx512bw", "avx512dq", "avx512vl"]}
+# The features of each level as server/cloth/simd_level.cpp asks the CPU for them (the psABI's
+# x86-64-v3 and -v4), by their /proc/cpuinfo names.
+V3 = ["avx2", "fma", "bmi1", "bmi2", "movbe", "f16c"]
+LEVEL_FLAGS = {"baseline": [], "avx2": V3, "avx512": V3 + ["avx512f", "avx512bw", "avx512dq", "avx512vl", "avx512cd"]}
 
 
 def test_step_names_its_level_and_every_level_steps_the_same_cloth():
