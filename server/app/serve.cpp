@@ -64,7 +64,7 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
       a << " < 1 asked for, alpha 1 used for the fingertips' stiff contacts (docs/contact.md)";
     s.push_back(a.str());
   }
-  const cloth::SimdLevel level = sc.integrator.simd ? *sc.integrator.simd : cloth::best_level();
+  const cloth::SimdLevel level = sc.integrator.element_level();
   s.push_back(std::string("element pass on ") + cloth::to_string(level) + ", lanes of " +
               std::to_string(cloth::element_kernels(level).lanes) + " doubles (" +
               (sc.integrator.simd ? "asked for" : "the widest level this CPU runs") + ")");

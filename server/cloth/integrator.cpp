@@ -141,7 +141,7 @@ Integrator::Integrator(const ClothModel& model, const IntegratorConfig& config,
   if (cfg_.proxies < 0 || cfg_.proxies > 16)
     throw std::invalid_argument("integrator.proxies: must be in [0, 16]");
   sys_ = build_pattern(model_, cfg_.proxies);
-  const ElementKernels& kernels = element_kernels(cfg_.simd ? *cfg_.simd : best_level());
+  const ElementKernels& kernels = element_kernels(cfg_.element_level());
   simd_ = kernels.level;
   lanes_ = kernels.lanes;
   std::vector<std::vector<int>> parts;  // the element pass's parts, the caller's alone last

@@ -40,6 +40,8 @@ struct IntegratorConfig {
   double matrix_refresh = 1e-4;
   /// The instruction level of the element pass (simd_level.hpp); none: the widest this CPU runs.
   std::optional<SimdLevel> simd = std::nullopt;
+  /// The level the element pass runs at: `simd`, or the widest this CPU runs.
+  SimdLevel element_level() const { return simd ? *simd : best_level(); }
 
   /// Throws std::invalid_argument naming the offending field.
   void validate() const;
