@@ -173,7 +173,7 @@ void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   f.only_keys(t, "haptics", {"rate", "finger_radius", "stiffness", "damping", "friction",
                              "kernel_radius", "margin", "preroll", "slew_rate", "watchdog_ms",
                              "ramp_ms", "max_force", "realtime", "local_patch", "local_model",
-                             "finger_mass", "contact_stiffness"});
+                             "finger_mass", "contact_stiffness", "refine"});
   auto& h = s.haptics;
   auto positive = [&](const char* key, double& v, const char* unit) {
     v = f.number(t, "haptics", key, v);
@@ -204,6 +204,14 @@ void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   s.local_patch = f.string(t, "haptics", "local_patch", s.local_patch);
   if (s.local_patch != "auto" && s.local_patch != "on" && s.local_patch != "off")
     f.fail(t.get("local_patch"), "haptics.local_patch", "must be \"auto\", \"on\" or \"off\"");
+  const std::string refine = f.string(t, "haptics", "refine", h.coupling.refine ? "on" : "off");
+  if (refine != "on" && refine != "off")
+    f.fail(t.get("refine"), "haptics.refine", "must be \"on\" or \"off\"");
+  h.coupling.refine = refine == "on";
+  if (h.coupling.refine && s.local_patch == "on")
+    f.fail(t.get("refine"), "haptics.refine",
+           "applies to direct coupling only (local_patch = \"off\" or \"auto\" on a cloth that "
+           "steps at the haptic rate); the multirate path does not refine yet");
   const std::string model = f.string(t, "haptics", "local_model", haptics::to_string(h.local_model));
   if (model == "response") h.local_model = haptics::LocalModel::Response;
   else if (model == "patch") h.local_model = haptics::LocalModel::Patch;

@@ -28,6 +28,29 @@ namespace hapticloth::app {
 
 namespace {
 
+// Local refinement (direct coupling): whether the mesh resolves the fingertip's contact patch,
+// and what is done where it does not.
+std::string refinement_stage(const Scene& sc, const cloth::ClothModel& m) {
+  double edge = 0.0;
+  for (const auto& t : m.triangles)
+    for (int k = 0; k < 3; ++k)
+      edge = std::max(edge, (m.rest_positions[t[k]] - m.rest_positions[t[(k + 1) % 3]]).norm());
+  const haptics::RefinementParams& r = sc.haptics.coupling.refinement;
+  const double finest = r.finest > 0.0 ? r.finest : sc.haptics.finger.radius / 8.0;
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(1) << "edges up to " << edge * 1e3 << " mm against a "
+     << sc.haptics.finger.radius * 1e3 << " mm fingertip, whose contact patch " << finest * 1e3
+     << " mm edges resolve: ";
+  if (edge <= r.resolved * finest) os << "no local refinement needed";
+  else if (sc.haptics.coupling.refine)
+    os << "local refinement on, a child mesh graded from " << finest * 1e3
+       << " mm under each touching fingertip where its triangle is coarser (docs/contact.md)";
+  else
+    os << "local refinement off (haptics.refine = \"off\"), so the felt force is stiffer than the "
+          "cloth's (docs/contact.md gives by how much)";
+  return os.str();
+}
+
 // What the scene needs, and why: one short line per stage.
 std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, double step_ms,
                                 double haptic_period_ms) {
@@ -55,6 +78,7 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
        << " last step is rendered until the next";
   }
   s.push_back(os.str());
+  if (!sc.haptics.local_patch) s.push_back(refinement_stage(sc, m));
   if (sc.integrator.alpha < 1.0) {
     std::ostringstream a;
     a << "alpha " << sc.integrator.alpha;

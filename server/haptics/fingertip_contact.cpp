@@ -324,7 +324,7 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
   vmax_ = std::sqrt(v2);
   for (int f = 0; f < fingers_; ++f) {
     cloth::ProxyNode& P = integ_.proxies()[f];
-    P.stiffness = p_.coupling_stiffness;
+    P.stiffness = 1.0 / (1.0 / p_.coupling_stiffness + refined_c_[f]);
     valid_[f] = in[f].valid;
     if (!in[f].valid) {  // no device sample: the proxy stays where it is, touching nothing
       P.target = P.x;
@@ -362,7 +362,7 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
 // (`hapticloth-bench stability`: 28 of 36 multirate cells instead of 34).
 void FingertipContact::set_coupling_target(cloth::ProxyNode& P, const FingerTarget& device) const {
   const Vec3 reach = device.position - P.x;
-  const double ask = p_.coupling_stiffness * reach.norm();
+  const double ask = P.stiffness * reach.norm();
   const double scale = p_.max_force > 0.0 && ask > p_.max_force ? p_.max_force / ask : 1.0;
   P.target = P.x + scale * reach;
   P.target_velocity = device.velocity;
@@ -599,6 +599,9 @@ void FingertipContact::end_step(const cloth::ClothState& s) {
     const double nn = nsum.norm();
     r.normal = nn > 0.0 ? Vec3(-nsum / nn) : Vec3::Zero();
     r.contact = fpos > 0.0 ? Vec3(csum / fpos) : P.x;
+    // With local refinement the fingertip sits deeper than the global proxy by the compliance
+    // the global mesh lacks (in series with the coupling): c (F . n) along -n.
+    r.proxy = P.x - refined_c_[f] * std::max(r.force.dot(r.normal), 0.0) * r.normal;
     r.penetration = exact_penetration(f, s.x, P.x);
     max_pen_ = std::max(max_pen_, r.penetration);
     samples_in_contact_ += r.points;

@@ -66,6 +66,14 @@ class FingertipContact final : public cloth::StepContacts {
   void end_step(const cloth::ClothState& s);
 
   const ProxyResult& result(int f) const { return out_[f]; }
+  /// Local refinement (LocalRefinement): the compliance c (m/N) the global mesh lacks under
+  /// finger f, in series with its coupling spring from the next step on: k_eff = 1 / (1/k + c).
+  void set_refined_compliance(int f, double c) { refined_c_[f] = c; }
+  /// Finger f's proxy in the global cloth, m (result().proxy is the fingertip: deeper by the
+  /// refined compliance).
+  const Vec3& global_proxy(int f) const { return integ_.proxies()[f].x; }
+  /// Finger f's coupling stiffness in the last step, N/m.
+  double coupling_stiffness(int f) const { return integ_.proxies()[f].stiffness; }
   /// Largest depth of any cloth point (vertex, edge or face) inside a fingertip sphere, m.
   double max_penetration() const { return max_pen_; }
   std::uint64_t active_samples() const { return samples_in_contact_; }
@@ -131,6 +139,7 @@ class FingertipContact final : public cloth::StepContacts {
   std::array<Finger, kMaxFingers> fing_;
   std::vector<Sample> merged_;  // merge_added()'s buffer
   std::array<ProxyResult, kMaxFingers> out_{};
+  std::array<double, kMaxFingers> refined_c_{};  // m/N, in series with the coupling
   std::array<Vec3, kMaxFingers> last_disp_{};
   std::array<Vec3, kMaxFingers> p0_{};  // proxies at the start of the step
   std::array<bool, kMaxFingers> seen_{}, valid_{};  // present since the last absence / this step

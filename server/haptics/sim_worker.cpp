@@ -63,6 +63,11 @@ SimWorker::SimWorker(const cloth::ClothModel& model, const cloth::IntegratorConf
   } else {
     tips_ = std::make_unique<FingertipContact>(model_, tris_, fingers_,
                                                contact_params(fp_, cp_.margin), integ_);
+    if (cp_.refine && mode == Rendering::Direct) {
+      auto refine = std::make_unique<LocalRefinement>(model_, contact_params(fp_, cp_.margin),
+                                                      integ_.config().gravity, cp_.refinement);
+      if (refine->coarsest_edge() > refine->resolved_edge()) refine_ = std::move(refine);
+    }
   }
   mine_.resize(model_.num_vertices(), static_cast<int>(to_haptics.back().near_triangles[0].size()));
 }
@@ -174,6 +179,7 @@ void SimWorker::step(double now) {
     integ_.step(s_);
   }
   if (tips_) tips_->end_step(s_);
+  if (refine_) refine_->update(s_, *tips_, fingers_);
   if (response_on_) hand_over_response();
   ++steps_;
   publish(now);

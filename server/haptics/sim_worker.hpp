@@ -13,6 +13,7 @@
 #include "haptics/handoff.hpp"
 #include "haptics/haptic_loop.hpp"
 #include "haptics/kernel_coupling.hpp"
+#include "haptics/local_refinement.hpp"
 #include "haptics/stats.hpp"
 #include "haptics/surface_contact.hpp"
 #include "hal/rt_handoff.hpp"
@@ -28,6 +29,11 @@ struct CouplingParams {
   double finger_mass = 0.05;
   /// Reach beyond the fingertip radius, m, within which the cloth is searched for contacts.
   double margin = 0.01;
+  /// Local refinement under the fingertips (direct coupling only; LocalRefinement): children
+  /// where the global mesh does not resolve the contact patch. Off by default: its cost on the
+  /// shipped scenes is not yet inside the step's budget (docs/contact.md).
+  bool refine = false;
+  RefinementParams refinement{};
 };
 
 class SimWorker {
@@ -53,6 +59,8 @@ class SimWorker {
   const cloth::Integrator& integrator() const { return integ_; }
   /// Direct coupling's contact (nullptr with local patches).
   const FingertipContact* fingertips() const { return tips_.get(); }
+  /// The local refinement (nullptr when off, or when the global mesh resolves the patch).
+  const LocalRefinement* refinement() const { return refine_.get(); }
   double kernel_radius() const { return kernel_r_; }
   /// The patch model's radius (0: no patch model): each snapshot then lists, per finger, the
   /// triangles a patch around the fingertip can take (ClothSnapshot::near_triangles).
@@ -88,6 +96,7 @@ class SimWorker {
   const std::vector<std::array<int, 3>>& tris_;  // the model's
   std::unique_ptr<FingertipContact> tips_;
   std::unique_ptr<KernelCoupling> kernel_;
+  std::unique_ptr<LocalRefinement> refine_;
   bool response_on_ = false;
   std::vector<cloth::Mat3> response_;
   ClothSnapshot mine_;

@@ -147,6 +147,9 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
        {"haptics.kernel_radius", "local_model = \"patch\""}},
       {"UnknownLocalModel", kScene + "\n[haptics]\nlocal_model = \"springs\"\n", 18,
        {"haptics.local_model", "\"response\" or \"patch\""}},
+      {"UnknownRefine", kScene + "\n[haptics]\nrefine = \"maybe\"\n", 18, {"haptics.refine", "\"on\" or \"off\""}},
+      {"RefineOnTheMultiratePath", kScene + "\n[haptics]\nlocal_patch = \"on\"\nrefine = \"on\"\n", 19,
+       {"haptics.refine", "direct coupling only"}},
       {"UnknownDeviceDriver", kScene + "\n[device]\ndriver = \"phantom\"\n", 18,
        {"key 'device.driver'", "unknown driver 'phantom'", "mock"}},
       {"UnknownDeviceClock", kScene + "\n[device]\ndriver = \"udp\"\nclock = \"gps\"\n", 19,
@@ -171,6 +174,8 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
   const auto path = (dir_ / "scene.toml").string();
   for (const BadFile& c : cases) expect_bad_file(c, path, [&] { scene(c.text); });
   EXPECT_NO_THROW(scene(kScene + "\n[haptics]\nlocal_patch = \"on\"\nlocal_model = \"patch\"\nkernel_radius = 0.02\n"));
+  EXPECT_FALSE(scene(kScene).haptics.coupling.refine);
+  EXPECT_TRUE(scene(kScene + "\n[haptics]\nrefine = \"on\"\n").haptics.coupling.refine);
 }
 
 TEST_F(SceneFileTest, PcgPreconditionerKey) {

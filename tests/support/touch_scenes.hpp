@@ -72,6 +72,8 @@ inline haptics::SessionConfig touch_session(double friction) {
 
 struct DrumSpec {
   double centre_edge = 0.25e-3;  ///< m, rest edge length at the centre of the graded disc
+  double rim_edge = 0.0;         ///< m, largest edge; 0 = max(5 mm, centre_edge)
+  bool refine = false;           ///< local refinement where the mesh does not resolve the patch
   MembraneDrum drum{};           ///< Et 1000 N/m, pre-stretch 1.1, rim radius 0.1 m, sphere 8 mm
   double shear = 500.0;          ///< Gt, N/m (isotropic with Poisson 0: Et / 2)
   double density = 0.1;          ///< kg/m^2
@@ -118,7 +120,7 @@ inline DrumResult press_drum(const DrumSpec& spec) {
   cloth::DiscSpec ds;
   ds.radius = d.rim_radius / d.prestretch;
   ds.centre_edge = spec.centre_edge;
-  ds.rim_edge = std::max(5e-3, spec.centre_edge);
+  ds.rim_edge = spec.rim_edge > 0.0 ? spec.rim_edge : std::max(5e-3, spec.centre_edge);
   const cloth::Mesh mesh = cloth::make_disc(ds);
   cloth::Material mat;
   mat.name = "linear-isotropic";
@@ -143,7 +145,9 @@ inline DrumResult press_drum(const DrumSpec& spec) {
   if (spec.hold > 0.0) tr.add(0, t_end + spec.hold, Vec3(0, 0, bottom));
   tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));  // parked away
   haptics::SessionConfig sc = touch_session(0.0);
+  sc.finger.radius = r;
   sc.gate.max_force = spec.max_force;
+  sc.coupling.refine = spec.refine;
   set_global_step(sc, ic, spec.global_dt, spec.model);
   TouchRig rig(std::move(model), std::move(tr), sc, ic, start, spec.solver);
   DrumResult res;

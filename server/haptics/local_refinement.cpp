@@ -1,0 +1,91 @@
+#include "haptics/local_refinement.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace hapticloth::haptics {
+
+namespace {
+// The child reaches this many of the touched triangle's longest edges from the contact: the
+// global mesh places the dimple right beyond about one element (its nodal values of w ~ ln r
+// are close to exact there), so the child's border sits where the global cloth is right.
+constexpr double kReachEdges = 1.5;
+// A child is re-centred once its contact has moved this fraction of its reach from where the
+// child was built.
+constexpr double kRecentre = 0.25;
+
+RefineSpec spec_for(const ContactParams& c, const RefinementParams& p) {
+  RefineSpec s;
+  s.finest = p.finest > 0.0 ? p.finest : c.radius / 8.0;
+  s.grading = p.grading;
+  return s;
+}
+ChildLaw child_law(const ContactParams& c) {
+  ChildLaw l;
+  l.radius = c.radius;
+  l.pressure_stiffness = c.pressure_stiffness;
+  l.stiffening_depth = c.stiffening_depth;
+  return l;
+}
+}  // namespace
+
+LocalRefinement::LocalRefinement(const cloth::ClothModel& global, const ContactParams& contact,
+                                 const Vec3& gravity, const RefinementParams& p)
+    : g_(global), cp_(contact), gravity_(gravity), p_(p), refiner_(global), spec_(spec_for(contact, p)) {
+  for (int t = 0; t < global.num_triangles(); ++t) coarsest_ = std::max(coarsest_, refiner_.longest_edge(t));
+}
+
+std::optional<ClothPoint> LocalRefinement::touched_point(const ProxyResult& r) const {
+  if (!r.valid || !r.in_contact || r.triangle < 0) return std::nullopt;
+  if (refiner_.longest_edge(r.triangle) <= resolved_edge()) return std::nullopt;  // resolved
+  ClothPoint at;
+  at.tri = r.triangle;
+  for (int k = 0; k < 3; ++k) at.b[k] = r.bary[k];
+  return at;
+}
+
+void LocalRefinement::build_child(int f, const ClothPoint& at, const cloth::ClothState& s) {
+  RefineSpec spec = spec_;
+  spec.reach = std::max(kReachEdges * refiner_.longest_edge(at.tri), 2.0 * cp_.radius);
+  child_[f] = std::make_unique<RefinedContact>(refiner_.refine(at, spec), g_.material, gravity_,
+                                               child_law(cp_));
+  child_[f]->follow(s.x);
+  anchor_[f] = refiner_.rest_point(at);
+  ++builds_;
+}
+
+void LocalRefinement::update(const cloth::ClothState& s, FingertipContact& contact, int fingers) {
+  std::array<ChildFinger, kMaxFingers> in{};
+  std::array<std::optional<ClothPoint>, kMaxFingers> at{};
+  for (int f = 0; f < fingers; ++f) {
+    const ProxyResult& r = contact.result(f);
+    at[f] = touched_point(r);
+    in[f].in = at[f].has_value() && r.force.dot(r.normal) > 0.0;
+    in[f].centre = contact.global_proxy(f);
+    in[f].normal = r.normal;
+    in[f].force = r.force.dot(r.normal);
+  }
+  for (int f = 0; f < fingers; ++f) {
+    if (!in[f].in) {
+      child_[f].reset();
+      compliance_[f] = 0.0;
+      contact.set_refined_compliance(f, 0.0);
+      continue;
+    }
+    const Vec3 here = refiner_.rest_point(*at[f]);
+    const double reach = std::max(kReachEdges * refiner_.longest_edge(at[f]->tri), 2.0 * cp_.radius);
+    const bool fresh = !child_[f] || (here - anchor_[f]).norm() > kRecentre * reach;
+    if (fresh) build_child(f, *at[f], s);
+    else child_[f]->follow(s.x);
+    // The other fingertips touching this child's cloth push on it too (a pinch).
+    std::array<ChildFinger, kMaxFingers> mine{};
+    const auto& region = child_[f]->mesh().region;
+    for (int g = 0; g < fingers; ++g)
+      if (in[g].in && std::binary_search(region.begin(), region.end(), at[g]->tri)) mine[g] = in[g];
+    child_[f]->settle(mine, fresh ? 4 * p_.iterations : p_.iterations);
+    compliance_[f] = std::max(0.0, child_[f]->extra_depth(f)) / in[f].force;
+    contact.set_refined_compliance(f, compliance_[f]);
+  }
+}
+
+}  // namespace hapticloth::haptics

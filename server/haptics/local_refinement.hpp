@@ -1,0 +1,73 @@
+// Local refinement under the fingertips (paper 4.2.2): where the global mesh does not resolve a
+// fingertip's contact patch, a refined child mesh of the cloth around the contact
+// (MeshRefiner) is pressed with the force the global step rendered (RefinedContact), and the
+// compliance the global mesh lacks goes in series with that fingertip's virtual coupling for
+// the next step (FingertipContact::set_refined_compliance). docs/contact.md gives the design,
+// why it was chosen and its figures.
+//
+// Owned by the simulation thread: after each global step it follows the cloth, re-centres a
+// child whose contact has moved on, and settles each child a few Newton iterations (warm
+// started from the last step, so a held press converges over steps).
+#pragma once
+
+#include <array>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "haptics/fingertip_contact.hpp"
+#include "haptics/refined_contact.hpp"
+#include "haptics/refined_mesh.hpp"
+
+namespace hapticloth::haptics {
+
+struct RefinementParams {
+  /// m: the child's edge at the contact point; 0 = fingertip radius / 8 (the global contact's
+  /// sample spacing).
+  double finest = 0.0;
+  /// Child edge / distance from the contact point. Measured on the drum (docs/contact.md):
+  /// 1.0 keeps every uniform mesh of 2-25 mm within 2.6% of the exact solution with 170-300
+  /// child vertices; 0.5 within 1.2% with 500.
+  double grading = 1.0;
+  /// The global mesh resolves the contact patch where the touched triangle's longest edge is at
+  /// most this many finest edges: no child there.
+  double resolved = 1.0;
+  int iterations = 2;  ///< Newton iterations per step (a new child: 4x)
+};
+
+class LocalRefinement {
+ public:
+  LocalRefinement(const cloth::ClothModel& global, const ContactParams& contact,
+                  const Vec3& gravity, const RefinementParams& p);
+
+  /// After a global step: the children follow the cloth `s` and carry the forces of
+  /// `contact`'s fingertips; the compliances they give are set on `contact` for the next step.
+  void update(const cloth::ClothState& s, FingertipContact& contact, int fingers);
+
+  /// Finger f's child, if it has one now.
+  const RefinedContact* child(int f) const { return child_[f].get(); }
+  double compliance(int f) const { return compliance_[f]; }
+  double finest() const { return spec_.finest; }
+  double resolved_edge() const { return p_.resolved * spec_.finest; }
+  /// The global mesh's longest edge, m (what the stage line compares with the patch).
+  double coarsest_edge() const { return coarsest_; }
+  std::uint64_t builds() const { return builds_; }
+
+ private:
+  std::optional<ClothPoint> touched_point(const ProxyResult& r) const;
+  void build_child(int f, const ClothPoint& at, const cloth::ClothState& s);
+
+  const cloth::ClothModel& g_;
+  ContactParams cp_;
+  Vec3 gravity_;
+  RefinementParams p_;
+  MeshRefiner refiner_;
+  RefineSpec spec_;
+  double coarsest_ = 0.0;
+  std::array<std::unique_ptr<RefinedContact>, kMaxFingers> child_;
+  std::array<Vec3, kMaxFingers> anchor_{};  // rest point each child is centred on
+  std::array<double, kMaxFingers> compliance_{};
+  std::uint64_t builds_ = 0;
+};
+
+}  // namespace hapticloth::haptics
