@@ -83,7 +83,7 @@ void RefinedContact::build_pattern() {
 
 void RefinedContact::follow(const std::vector<Vec3>& global_x) {
   const bool first = placed_.empty();
-  std::vector<Vec3> old;
+  std::vector<Vec3>& old = placed_before_;  // the last placement; no allocation after the first
   old.swap(placed_);
   mesh_.place(global_x, placed_);
   if (first) {

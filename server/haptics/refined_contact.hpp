@@ -81,7 +81,7 @@ class RefinedContact {
   cloth::ClothModel model_;
   Vec3 gravity_;
   ChildLaw law_;
-  std::vector<Vec3> x_, x_try_, placed_;
+  std::vector<Vec3> x_, x_try_, placed_, placed_before_;
   std::array<double, kMaxFingers> s_{}, s_try_{};
   std::array<ChildFinger, kMaxFingers> fing_{};
   cloth::SymCsr A_;  // the child's pattern (model_.pattern), solved with CHOLMOD
