@@ -18,6 +18,7 @@
 
 #include "hal/handle.hpp"
 #include "hal/platform_timer.hpp"
+#include "haptics/local_refinement.hpp"
 #include "haptics/session.hpp"
 #include "registry.hpp"
 #include "remote/command_sink.hpp"
@@ -31,17 +32,17 @@ namespace {
 // Local refinement (direct coupling): whether the mesh resolves the fingertip's contact patch,
 // and what is done where it does not.
 std::string refinement_stage(const Scene& sc, const cloth::ClothModel& m) {
-  double edge = 0.0;
-  for (const auto& t : m.triangles)
-    for (int k = 0; k < 3; ++k)
-      edge = std::max(edge, (m.rest_positions[t[k]] - m.rest_positions[t[(k + 1) % 3]]).norm());
   const haptics::RefinementParams& r = sc.haptics.coupling.refinement;
-  const double finest = r.finest > 0.0 ? r.finest : sc.haptics.finger.radius / 8.0;
+  const double radius = sc.haptics.finger.radius, finest = haptics::finest_edge(r, radius);
   std::ostringstream os;
-  os << std::fixed << std::setprecision(1) << "edges up to " << edge * 1e3 << " mm against a "
-     << sc.haptics.finger.radius * 1e3 << " mm fingertip, whose contact patch " << finest * 1e3
+  os << std::fixed << std::setprecision(1) << "edges up to " << haptics::longest_rest_edge(m) * 1e3
+     << " mm against a " << radius * 1e3 << " mm fingertip, whose contact patch " << finest * 1e3
      << " mm edges resolve: ";
-  if (edge <= r.resolved * finest) os << "no local refinement needed";
+  if (sc.haptics.local_patch)
+    os << (sc.haptics.coupling.refine ? "local refinement asked for but not applied: the multirate path"
+                                        " does not refine yet"
+                                      : "local refinement off (the multirate path does not refine)");
+  else if (!haptics::mesh_needs_refinement(m, r, radius)) os << "no local refinement needed";
   else if (sc.haptics.coupling.refine)
     os << "local refinement on, a child mesh graded from " << finest * 1e3
        << " mm under each touching fingertip where its triangle is coarser (docs/contact.md)";
@@ -78,7 +79,7 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
        << " last step is rendered until the next";
   }
   s.push_back(os.str());
-  if (!sc.haptics.local_patch) s.push_back(refinement_stage(sc, m));
+  s.push_back(refinement_stage(sc, m));
   if (sc.integrator.alpha < 1.0) {
     std::ostringstream a;
     a << "alpha " << sc.integrator.alpha;

@@ -16,7 +16,7 @@ constexpr double kRecentre = 0.25;
 
 RefineSpec spec_for(const ContactParams& c, const RefinementParams& p) {
   RefineSpec s;
-  s.finest = p.finest > 0.0 ? p.finest : c.radius / 8.0;
+  s.finest = finest_edge(p, c.radius);
   s.grading = p.grading;
   return s;
 }
@@ -29,11 +29,23 @@ ChildLaw child_law(const ContactParams& c) {
 }
 }  // namespace
 
+double finest_edge(const RefinementParams& p, double radius) { return p.finest > 0.0 ? p.finest : radius / 8.0; }
+
+double longest_rest_edge(const cloth::ClothModel& m) {
+  double edge = 0.0;
+  for (const auto& t : m.triangles)
+    for (int k = 0; k < 3; ++k)
+      edge = std::max(edge, (m.rest_positions[t[k]] - m.rest_positions[t[(k + 1) % 3]]).norm());
+  return edge;
+}
+
+bool mesh_needs_refinement(const cloth::ClothModel& m, const RefinementParams& p, double radius) {
+  return longest_rest_edge(m) > p.resolved * finest_edge(p, radius);
+}
+
 LocalRefinement::LocalRefinement(const cloth::ClothModel& global, const ContactParams& contact,
                                  const Vec3& gravity, const RefinementParams& p)
-    : g_(global), cp_(contact), gravity_(gravity), p_(p), refiner_(global), spec_(spec_for(contact, p)) {
-  for (int t = 0; t < global.num_triangles(); ++t) coarsest_ = std::max(coarsest_, refiner_.longest_edge(t));
-}
+    : g_(global), cp_(contact), gravity_(gravity), p_(p), refiner_(global), spec_(spec_for(contact, p)) {}
 
 std::optional<ClothPoint> LocalRefinement::touched_point(const ProxyResult& r) const {
   if (!r.valid || !r.in_contact || r.triangle < 0) return std::nullopt;

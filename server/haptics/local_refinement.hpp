@@ -35,6 +35,14 @@ struct RefinementParams {
   int iterations = 2;  ///< Newton iterations per step (a new child: 4x)
 };
 
+/// m: the child's edge at the contact point for a fingertip of `radius`.
+double finest_edge(const RefinementParams& p, double radius);
+/// The cloth's longest rest edge, m.
+double longest_rest_edge(const cloth::ClothModel& m);
+/// Whether some triangle is coarser than what resolves a fingertip's contact patch: the one rule
+/// for the simulation (a LocalRefinement is made) and the stage line.
+bool mesh_needs_refinement(const cloth::ClothModel& m, const RefinementParams& p, double radius);
+
 class LocalRefinement {
  public:
   LocalRefinement(const cloth::ClothModel& global, const ContactParams& contact,
@@ -49,8 +57,6 @@ class LocalRefinement {
   double compliance(int f) const { return compliance_[f]; }
   double finest() const { return spec_.finest; }
   double resolved_edge() const { return p_.resolved * spec_.finest; }
-  /// The global mesh's longest edge, m (what the stage line compares with the patch).
-  double coarsest_edge() const { return coarsest_; }
   std::uint64_t builds() const { return builds_; }
 
  private:
@@ -63,7 +69,6 @@ class LocalRefinement {
   RefinementParams p_;
   MeshRefiner refiner_;
   RefineSpec spec_;
-  double coarsest_ = 0.0;
   std::array<std::unique_ptr<RefinedContact>, kMaxFingers> child_;
   std::array<Vec3, kMaxFingers> anchor_{};  // rest point each child is centred on
   std::array<double, kMaxFingers> compliance_{};

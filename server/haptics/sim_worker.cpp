@@ -63,11 +63,9 @@ SimWorker::SimWorker(const cloth::ClothModel& model, const cloth::IntegratorConf
   } else {
     tips_ = std::make_unique<FingertipContact>(model_, tris_, fingers_,
                                                contact_params(fp_, cp_.margin), integ_);
-    if (cp_.refine && mode == Rendering::Direct) {
-      auto refine = std::make_unique<LocalRefinement>(model_, contact_params(fp_, cp_.margin),
-                                                      integ_.config().gravity, cp_.refinement);
-      if (refine->coarsest_edge() > refine->resolved_edge()) refine_ = std::move(refine);
-    }
+    if (cp_.refine && mode == Rendering::Direct && mesh_needs_refinement(model_, cp_.refinement, fp_.radius))
+      refine_ = std::make_unique<LocalRefinement>(model_, contact_params(fp_, cp_.margin),
+                                                  integ_.config().gravity, cp_.refinement);
   }
   mine_.resize(model_.num_vertices(), static_cast<int>(to_haptics.back().near_triangles[0].size()));
 }
