@@ -21,7 +21,8 @@ HapticLoop::HapticLoop(const std::vector<std::array<int, 3>>& triangles, int ver
       in_(from_sim),
       out_(to_sim),
       fingers_(device.info().fingers),
-      catch_up_(1.0 / device.info().nominal_rate),
+      period_(1.0 / device.info().nominal_rate),
+      catch_up_(period_),
       passivity_(k_, gate.max_force()) {
   (void)vertices;
   direct_ = std::make_unique<ProxyContact>(k_);
@@ -33,6 +34,7 @@ void HapticLoop::enable_local_patch(const std::vector<Vec3>& rest, const std::ve
   patch_ = std::make_unique<PatchContact>(tris_, rest, pinned, p, fingers_, fp_.radius, k_,
                                           fp_.damping, fp_.friction);
   contact_ = patch_.get();
+  bound_ = std::make_unique<EnergyBound>(period_);
 }
 
 bool HapticLoop::wind_down(double now) noexcept {
@@ -44,6 +46,20 @@ bool HapticLoop::wind_down(double now) noexcept {
   for (int f = 0; f < fingers_; ++f)
     if (!gated_.force[f].isZero(0.0)) return false;
   return true;
+}
+
+void HapticLoop::prime(double now) noexcept {
+  if (dev_.read(now, state_) == devices::Status::Error) ++device_errors_;
+  const bool present = gate_.fresh(now, state_.received_time);
+  report_.time = now;
+  report_.tick = 0;
+  for (int f = 0; f < fingers_; ++f) {
+    FingerReport& r = report_.finger[f];
+    absent(r, map_.origin + map_.R * state_.finger[f].position, map_.R * state_.finger[f].velocity);
+    r.present = present;
+  }
+  out_.back() = report_;
+  out_.publish();
 }
 
 // An absent finger's report: where the device says it is, touching nothing, no force.
@@ -59,6 +75,28 @@ void HapticLoop::absent(FingerReport& r, const Vec3& centre, const Vec3& velocit
 void HapticLoop::enable_response() {
   response_ = std::make_unique<ResponseContact>(k_, fp_.damping, fp_.friction);
   contact_ = response_.get();
+  bound_ = std::make_unique<EnergyBound>(period_);
+}
+
+// The multirate models' forces within what the hand has put into them (energy_bound.hpp); what
+// is scaled back is taken from the model's force, so the cloth gets the reaction of what the
+// hand gets, and the proxy stays where the coupling spring puts it.
+void HapticLoop::bound_energy(const std::array<Fingertip, kMaxFingers>& tips) noexcept {
+  std::array<Vec3, kMaxFingers> force{}, v{};
+  std::array<bool, kMaxFingers> touching{};
+  for (int f = 0; f < fingers_; ++f) {
+    force[f] = report_.finger[f].force;
+    v[f] = tips[f].velocity;
+    touching[f] = report_.finger[f].in_contact;
+  }
+  bound_->limit(force, v, touching, fingers_);
+  for (int f = 0; f < fingers_; ++f) {
+    FingerReport& r = report_.finger[f];
+    const Vec3 cut = force[f] - r.force;
+    r.force += cut;
+    r.spring += cut;
+    r.proxy += cut / k_;
+  }
 }
 
 void HapticLoop::tick(double now) noexcept {
@@ -90,15 +128,11 @@ void HapticLoop::tick(double now) noexcept {
     here[f] = present;
   }
   contact_->prepare(s, tips, here, fingers_);
+  if (bound_) bound_->account(measured, sent_, here, fingers_);
   for (int f = 0; f < fingers_; ++f) {
     FingerReport& r = report_.finger[f];
-    Vec3& damp = damp_[f];
-    damp.setZero();
     if (present) {
       contact_->touch(s, now, tick_dt, tips[f], r);
-      // The coupling's energy over the last interval, with the force the user got then.
-      damp = passivity_.observe(f, tick_dt, map_.R * gated_.force[f], measured[f], r.proxy,
-                                tips[f].velocity, r.force, r.spring, r.in_contact);
     } else {
       if (r.present) contact_->release(f);
       absent(r, tips[f].centre, tips[f].velocity);
@@ -106,6 +140,16 @@ void HapticLoop::tick(double now) noexcept {
       passivity_.reset(f);
     }
     r.present = present;
+  }
+  if (bound_) bound_energy(tips);
+  for (int f = 0; f < fingers_; ++f) {
+    FingerReport& r = report_.finger[f];
+    Vec3& damp = damp_[f];
+    damp.setZero();
+    // The coupling's energy over the last interval, with the force the user got then.
+    if (present)
+      damp = passivity_.observe(f, tick_dt, sent_[f], measured[f], r.proxy, tips[f].velocity, r.force,
+                                r.spring, r.in_contact);
     contact = contact || r.in_contact;
     // Scene -> device frame for the force.
     if (!guard_) damp.setZero();
@@ -114,6 +158,7 @@ void HapticLoop::tick(double now) noexcept {
   if (contact) ++contact_ticks_;
   gate_.apply(now, state_.received_time, cmd_, gated_);
   if (dev_.write(now, gated_) == devices::Status::Error) ++device_errors_;
+  for (int f = 0; f < fingers_; ++f) sent_[f] = map_.R * gated_.force[f];
   // The simulation gets what the user actually feels (after the gate), in the scene frame, but
   // for the passivity controller's damping, which acts between the hand and the coupling only:
   // the contact's force, scaled as the gate scaled the command (clamp, fade). (Subtracting the

@@ -14,6 +14,7 @@
 #include "hal/handle.hpp"
 #include "hal/rt_handoff.hpp"
 #include "hal/safety_gate.hpp"
+#include "haptics/energy_bound.hpp"
 #include "haptics/handoff.hpp"
 #include "haptics/late_tick.hpp"
 #include "haptics/passivity.hpp"
@@ -45,6 +46,12 @@ class HapticLoop {
              const DeviceMapping& map, TripleBuffer<ClothSnapshot>& from_sim,
              TripleBuffer<HapticReport>& to_sim);
 
+  /// Before the simulation's first step: reads the device and reports where its fingertips are
+  /// (touching nothing, no force sent), so that the first step already has them. Without it the
+  /// first global step ran without fingertips: at a 20 ms step a free cloth pinched from the
+  /// first tick fell 12 mm in the two steps before the patch model first saw the fingertips,
+  /// through the lower one, and was let go.
+  void prime(double now) noexcept;
   /// One tick at loop time `now` (s). Real-time safe.
   void tick(double now) noexcept;
   /// A closing tick: zero force commanded through the safety gate (which slew-limits the way
@@ -78,12 +85,16 @@ class HapticLoop {
   std::uint64_t late_ticks() const { return late_ticks_; }
   const LateTickCatchUp& catch_up() const { return catch_up_; }
   const CouplingPassivity& passivity() const { return passivity_; }
+  /// The multirate path's energy bound (nullptr with direct coupling, whose proxies are solved
+  /// with the cloth itself).
+  const EnergyBound* energy_bound() const { return bound_.get(); }
   /// The late-tick catch-up and the passivity controller act (the default); off, the observer
   /// still measures (`hapticloth-bench late-ticks` compares both).
   void set_time_guard(bool on) { guard_ = on; }
 
  private:
   static void absent(FingerReport& r, const Vec3& centre, const Vec3& velocity) noexcept;
+  void bound_energy(const std::array<Fingertip, kMaxFingers>& tips) noexcept;
 
   const std::vector<std::array<int, 3>>& tris_;
   devices::DeviceHandle& dev_;
@@ -94,6 +105,7 @@ class HapticLoop {
   TripleBuffer<ClothSnapshot>& in_;
   TripleBuffer<HapticReport>& out_;
   int fingers_;
+  double period_;  // s, the device's nominal tick
   devices::DeviceState state_;
   devices::DeviceCommand cmd_, gated_;
   HapticReport report_;
@@ -101,6 +113,8 @@ class HapticLoop {
   std::unique_ptr<PatchContact> patch_;
   std::unique_ptr<SurfaceContact> response_;
   SurfaceContact* contact_;  // direct_, patch_ or response_
+  std::unique_ptr<EnergyBound> bound_;  // the multirate path's models only
+  std::array<Vec3, kMaxFingers> sent_{};  // the forces the device holds since the last tick, scene frame
   LateTickCatchUp catch_up_;
   CouplingPassivity passivity_;
   std::array<Vec3, kMaxFingers> damp_{};  // this tick's passivity damping per finger, scene frame

@@ -106,7 +106,9 @@ void Session::run_realtime(double seconds) {
   std::string note;
   const double period = 1.0 / sc_.haptic_rate;
   const double t_start = mono_now() + 0.01;
-  // The simulation publishes once before the haptic loop starts.
+  // The haptic loop reports the fingertips, then the simulation publishes once, before the
+  // loops start.
+  loop_->prime(0.0);
   sim_->publish(0.0);
   std::thread sim_thread([&] { sim_thread_loop(t_start, stop_flag); });
   std::thread haptic_thread([&] {
@@ -245,6 +247,10 @@ SessionReport Session::report() const {
   r.late_ticks = loop_->late_ticks();
   r.passivity_ticks = loop_->passivity().stats().active_ticks;
   r.passivity_deficit = loop_->passivity().stats().deepest_deficit_j;
+  if (const EnergyBound* b = loop_->energy_bound()) {
+    r.energy_bound_ticks = b->stats().limited_ticks;
+    r.energy_withheld = b->stats().withheld_j;
+  }
   if (const FingertipContact* c = sim_->fingertips()) {
     r.max_penetration = c->max_penetration();
     r.contact_samples = c->active_samples();
@@ -294,6 +300,10 @@ std::string SessionReport::to_text() const {
   os << "late ticks       " << late_ticks << " (their motion caught up over the ticks missed); "
      << "passivity control on " << passivity_ticks << " ticks, coupling's largest deficit "
      << std::setprecision(2) << passivity_deficit * 1e6 << " uJ\n" << std::setprecision(1);
+  if (energy_bound_ticks > 0)
+    os << "energy bound     the multirate model's force scaled back on " << energy_bound_ticks
+       << " ticks, " << std::setprecision(2) << energy_withheld * 1e6
+       << " uJ withheld (more than the hand had put in)\n" << std::setprecision(1);
   os << "scheduling       " << scheduling_note << (memory_locked ? ", memory locked" : "") << "\n";
   return os.str();
 }
@@ -333,6 +343,8 @@ std::string SessionReport::to_json() const {
   j["late_ticks"] = late_ticks;
   j["passivity_ticks"] = passivity_ticks;
   j["passivity_deficit_j"] = passivity_deficit;
+  j["energy_bound_ticks"] = energy_bound_ticks;
+  j["energy_withheld_j"] = energy_withheld;
   j["realtime_scheduling"] = realtime_scheduling;
   j["memory_locked"] = memory_locked;
   return j.dump();

@@ -62,6 +62,10 @@ struct SessionReport {
   /// ticks it added damping on, and the most energy the coupling gave beyond passivity (J).
   std::uint64_t late_ticks = 0, passivity_ticks = 0;
   double passivity_deficit = 0.0;
+  /// The multirate path's energy bound (energy_bound.hpp): ticks on which it scaled a force back,
+  /// and the work on the hand it withheld, J.
+  std::uint64_t energy_bound_ticks = 0;
+  double energy_withheld = 0.0;
   double max_force = 0.0;          ///< N, largest force sent to a finger
   double sim_time = 0.0;           ///< s of session: the haptic ticks run times the haptic period
   /// s the cloth advanced in the session (its steps times their dt). Below sim_time when the
@@ -158,6 +162,7 @@ class Session {
 template <class L, class F>
 void Session::run_stepped_late(double seconds, double sim_period, L&& late, F&& on_tick) {
   start();
+  loop_->prime(0.0);
   r_.scheduling_note = "stepped clock (no real-time scheduling)";
   const double hp = 1.0 / sc_.haptic_rate;
   const double sp = sim_period > 0.0 ? sim_period : dt_sim_;

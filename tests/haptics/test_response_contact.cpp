@@ -8,6 +8,7 @@
 #include "support/touch_scenes.hpp"
 
 using namespace hapticloth;
+using haptics::Vec3;
 
 TEST(ResponseContact, DrumPressAt20msMatchesMembraneTheory) {
   test::DrumSpec spec;
@@ -34,4 +35,39 @@ TEST(ResponseContact, PinchAt20msCarriesTheWeight) {
               r.max_penetration * 1e3);
   EXPECT_NEAR(r.error(), 0.0, 0.05);
   EXPECT_LT(r.centre_offset, 0.005);
+}
+
+// A frictionless stroke at constant depth (3 mm into the 15 mm-element drum, 30 mm/s along x):
+// with no friction the sideways force is the cloth's shape alone. Direct coupling keeps its mean
+// under 1% of the normal force. The multirate path drags, more the longer its global step
+// (about 3% at 10 ms, 9% at 20 ms; docs/haptic-loop.md): a known limit, whose cause is not yet
+// isolated. What it must never do is push the finger along (the sign of a model that gives the
+// user energy).
+TEST(ResponseContact, FrictionlessStrokeSidewaysForce) {
+  const double r = 0.008;
+  for (double dt : {1e-3, 1e-2, 2e-2}) {
+    haptics::SessionConfig sc;
+    sc.finger.friction = 0.0;
+    cloth::IntegratorConfig ic = test::sim_config(dt);
+    test::set_global_step(sc, ic, dt, haptics::LocalModel::Response);
+    test::DrumRig rig(test::drum(), test::one_finger({{0.0, Vec3(-0.03, 0.002, 0.03)},
+                                                      {0.3, Vec3(-0.03, 0.002, r - 0.003)},
+                                                      {0.8, Vec3(-0.03, 0.002, r - 0.003)},
+                                                      {2.8, Vec3(0.03, 0.002, r - 0.003)}}),
+                      sc, ic);
+    double fx = 0.0, fz = 0.0;
+    int n = 0;
+    rig.session->run_stepped(2.8, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
+      const auto& f = h.last_report().finger[0];
+      if (h.last_report().time < 1.0 || !f.in_contact) return;
+      fx += f.force.x();
+      fz += f.force.z();
+      ++n;
+    });
+    std::printf("global step %2.0f ms: mean sideways / normal force %+.4f over %d ticks\n", dt * 1e3,
+                fx / fz, n);
+    EXPECT_EQ(n, 1800) << dt;  // in contact all along
+    if (dt == 1e-3) EXPECT_LT(std::abs(fx / fz), 0.01);
+    EXPECT_LT(fx / fz, 0.01) << dt;  // never a push along the motion (+x)
+  }
 }

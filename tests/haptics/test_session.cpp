@@ -390,3 +390,30 @@ TEST(Haptics, CountsTheTicksThatOverranTheirPeriod) {
   EXPECT_NE(rep.to_text().find(" of them overran their period"), std::string::npos);
   EXPECT_NE(rep.to_json().find("\"overruns\""), std::string::npos);
 }
+
+// A pinch engaged from the first tick: the cloth is inside both fingertips when the simulation
+// first sees them. The haptic loop reports the fingertips before the first step
+// (HapticLoop::prime), so the first step has them: a free cloth of 10-25 mm elements is held,
+// with its weight carried within 1%, by direct coupling and on the multirate path at 20 ms
+// global steps, in contact from the first tick. (Without the report the first step ran without
+// fingertips: the cloth fell for one 20 ms step before its contact was found.)
+TEST(Haptics, PinchEngagedFromTheFirstTickHolds) {
+  for (double dt : {1e-3, 2e-2})
+    for (int quads : {8, 10, 20}) {  // 25, 20, 10 mm elements
+      test::PinchSpec spec;
+      spec.quads = quads;
+      spec.solver = "pcg";
+      spec.global_dt = dt;
+      spec.engaged_from_start = true;
+      spec.hold = 2.0;
+      const test::PinchResult r = test::pinch_handkerchief(spec);
+      std::printf("global step %2.0f ms, %2.0f mm elements: carried %.5f N of m g %.5f N (%+.2f%%), "
+                  "centre %.2f mm off, deepest %.3f mm, contact on %llu of %llu ticks\n", dt * 1e3,
+                  200.0 / quads, r.carried, r.weight, 100 * r.error(), r.centre_offset * 1e3,
+                  r.max_penetration * 1e3, static_cast<unsigned long long>(r.report.contact_ticks),
+                  static_cast<unsigned long long>(r.report.haptic.ticks));
+      EXPECT_NEAR(r.error(), 0.0, 0.01) << dt << " s, " << quads;
+      EXPECT_EQ(r.report.contact_ticks, r.report.haptic.ticks) << dt << " s, " << quads;
+      EXPECT_LT(r.centre_offset, 0.005) << dt << " s, " << quads;
+    }
+}

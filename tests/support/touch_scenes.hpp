@@ -182,6 +182,83 @@ inline DrumResult press_drum(const DrumSpec& spec) {
   return res;
 }
 
+// ---- Closed press cycles: the energy the rendering gives the user ---------------------------
+
+struct CycleSpec {
+  DrumSpec drum{};         ///< the drum, its mesh and global step (its speed and depth unused)
+  double frequency = 1.0;  ///< Hz, press-and-release cycles
+  int cycles = 4;
+  double above = 1e-3;     ///< m, the device's top above geometric touch
+  double depth = 3e-3;     ///< m, the device's deepest point below geometric touch
+};
+
+struct CycleResult {
+  /// J per cycle: the work the force sent to the device did on it (> 0: the user got energy).
+  std::vector<double> work_on_user;
+  double peak_force = 0.0;  ///< N, largest rendered normal force
+  haptics::SessionReport report;
+};
+
+/// The drum pressed and released at its centre by a fingertip moving as
+/// z(t) = top - (above + depth) (1 - cos 2 pi f t) / 2, from above touch to `depth` below it
+/// and back, `cycles` times. Each cycle's work of the commanded force on the device,
+/// sum F_n . (x_n+1 - x_n) (the force held over the tick that follows it).
+inline CycleResult cycle_drum(const CycleSpec& spec) {
+  const MembraneDrum& d = spec.drum.drum;
+  cloth::DiscSpec ds;
+  ds.radius = d.rim_radius / d.prestretch;
+  ds.centre_edge = spec.drum.centre_edge;
+  ds.rim_edge = spec.drum.rim_edge > 0.0 ? spec.drum.rim_edge : std::max(5e-3, spec.drum.centre_edge);
+  const cloth::Mesh mesh = cloth::make_disc(ds);
+  cloth::Material mat;
+  mat.name = "linear-isotropic";
+  mat.areal_density = spec.drum.density;
+  mat.weft = cloth::StrainStressCurve::linear(d.Et);
+  mat.warp = cloth::StrainStressCurve::linear(d.Et);
+  mat.shear = cloth::StrainStressCurve::linear(spec.drum.shear, true);
+  for (auto* c : {&mat.weft, &mat.warp, &mat.shear}) c->max_strain = 1.0;
+  cloth::ClothModel model = cloth::build_model(mesh, mat, cloth::disc_rim(mesh));
+  cloth::ClothState start = cloth::rest_state(model);
+  for (auto& x : start.x) x *= d.prestretch;
+  cloth::IntegratorConfig ic;
+  ic.dt = 1e-3;
+  ic.gravity = Vec3::Zero();
+  ic.air_damping = 1.0;
+  const double r = d.sphere_radius, top = r + spec.above, travel = spec.above + spec.depth;
+  const double period = 1.0 / spec.frequency, t_end = spec.cycles * period;
+  devices::Trajectory tr(2);
+  const int knots = 200;  // per cycle: piecewise linear, 5 ms apart at 1 Hz
+  for (int c = 0; c < spec.cycles; ++c)
+    for (int k = 0; k < knots; ++k) {
+      const double t = (c + static_cast<double>(k) / knots) * period;
+      tr.add(0, t, Vec3(0, 0, top - travel * 0.5 * (1.0 - std::cos(2.0 * M_PI * spec.frequency * t))));
+    }
+  tr.add(0, t_end, Vec3(0, 0, top));
+  tr.add(0, t_end + 0.1, Vec3(0, 0, top));
+  tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));  // parked away
+  haptics::SessionConfig sc = touch_session(0.0);
+  sc.finger.radius = r;
+  sc.coupling.refine = spec.drum.refine;
+  set_global_step(sc, ic, spec.drum.global_dt, spec.drum.model);
+  TouchRig rig(std::move(model), std::move(tr), sc, ic, start, spec.drum.solver);
+  CycleResult res;
+  res.work_on_user.assign(spec.cycles, 0.0);
+  Vec3 last_x = Vec3(0, 0, top), last_f = Vec3::Zero();
+  double t = 0.0;
+  const double tick = 1.0 / sc.haptic_rate;
+  rig.session->run_stepped(t_end, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
+    const Vec3 x = h.device_state().finger[0].position;
+    const int c = std::min(spec.cycles - 1, static_cast<int>(t / period));
+    res.work_on_user[c] += last_f.dot(x - last_x);
+    last_x = x;
+    last_f = h.last_command().force[0];
+    res.peak_force = std::max(res.peak_force, last_f.z());
+    t += tick;
+  });
+  res.report = rig.session->report();
+  return res;
+}
+
 // ---- The handkerchief ----------------------------------------------------------------------
 
 struct PinchSpec {
@@ -193,6 +270,9 @@ struct PinchSpec {
   std::string solver = "cholmod";
   double global_dt = 1e-3;    ///< s (see DrumSpec)
   haptics::LocalModel model = haptics::LocalModel::Response;
+  /// The fingertips are squeezed from the first tick (the cloth is inside them when the
+  /// simulation first sees them), instead of closing over the first 50 ms.
+  bool engaged_from_start = false;
 };
 
 struct PinchResult {
@@ -224,11 +304,12 @@ inline PinchResult pinch_handkerchief(const PinchSpec& spec) {
   const double r = 0.008, s = spec.squeeze;
   const Vec3 at(0.0011, 0.0007, 0.0);  // off the centre vertex: inside a triangle
   devices::Trajectory tr(2);
-  tr.add(0, 0.0, at + Vec3(0, 0, r));
-  tr.add(0, 0.05, at + Vec3(0, 0, r - s));
+  const double closing = spec.engaged_from_start ? 0.0 : 0.05;
+  if (closing > 0.0) tr.add(0, 0.0, at + Vec3(0, 0, r));
+  tr.add(0, closing, at + Vec3(0, 0, r - s));
   tr.add(0, spec.hold, at + Vec3(0, 0, r - s));
-  tr.add(1, 0.0, at - Vec3(0, 0, r));
-  tr.add(1, 0.05, at - Vec3(0, 0, r - s));
+  if (closing > 0.0) tr.add(1, 0.0, at - Vec3(0, 0, r));
+  tr.add(1, closing, at - Vec3(0, 0, r - s));
   tr.add(1, spec.hold, at - Vec3(0, 0, r - s));
   haptics::SessionConfig sc = touch_session(spec.friction);
   set_global_step(sc, ic, spec.global_dt, spec.model);
