@@ -204,18 +204,20 @@ void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   s.local_patch = f.string(t, "haptics", "local_patch", s.local_patch);
   if (s.local_patch != "auto" && s.local_patch != "on" && s.local_patch != "off")
     f.fail(t.get("local_patch"), "haptics.local_patch", "must be \"auto\", \"on\" or \"off\"");
-  const std::string refine = f.string(t, "haptics", "refine", h.coupling.refine ? "on" : "off");
-  if (refine != "on" && refine != "off")
-    f.fail(t.get("refine"), "haptics.refine", "must be \"on\" or \"off\"");
-  h.coupling.refine = refine == "on";
-  if (h.coupling.refine && s.local_patch == "on")
-    f.fail(t.get("refine"), "haptics.refine",
-           "applies to direct coupling only (local_patch = \"off\" or \"auto\" on a cloth that "
-           "steps at the haptic rate); the multirate path does not refine yet");
+  const std::string refine = f.string(t, "haptics", "refine", haptics::to_string(h.coupling.refine));
+  if (refine == "auto") h.coupling.refine = haptics::Refine::Auto;
+  else if (refine == "on") h.coupling.refine = haptics::Refine::On;
+  else if (refine == "off") h.coupling.refine = haptics::Refine::Off;
+  else f.fail(t.get("refine"), "haptics.refine", "must be \"auto\", \"on\" or \"off\"");
   const std::string model = f.string(t, "haptics", "local_model", haptics::to_string(h.local_model));
   if (model == "response") h.local_model = haptics::LocalModel::Response;
   else if (model == "patch") h.local_model = haptics::LocalModel::Patch;
   else f.fail(t.get("local_model"), "haptics.local_model", "must be \"response\" or \"patch\"");
+  if (h.coupling.refine == haptics::Refine::On && s.local_patch == "on" &&
+      h.local_model == haptics::LocalModel::Patch)
+    f.fail(t.get("refine"), "haptics.refine",
+           "applies to direct coupling and to local_model = \"response\"; the patch model "
+           "renders from its own subdivided patch");
   // Direct coupling and the response model solve the fingertip spheres with the cloth: no
   // kernel spreads the force and the contact itself exchanges the impact momentum.
   for (const char* key : {"kernel_radius", "finger_mass"}) {

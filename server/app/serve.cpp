@@ -29,7 +29,7 @@ namespace hapticloth::app {
 
 namespace {
 
-// Local refinement (direct coupling): whether the mesh resolves the fingertip's contact patch,
+// Local refinement (direct coupling and the response model): whether the mesh resolves the fingertip's contact patch,
 // and what is done where it does not.
 std::string refinement_stage(const Scene& sc, const cloth::ClothModel& m) {
   const haptics::RefinementParams& r = sc.haptics.coupling.refinement;
@@ -38,14 +38,21 @@ std::string refinement_stage(const Scene& sc, const cloth::ClothModel& m) {
   os << std::fixed << std::setprecision(1) << "edges up to " << haptics::longest_rest_edge(m) * 1e3
      << " mm against a " << radius * 1e3 << " mm fingertip, whose contact patch " << finest * 1e3
      << " mm edges resolve: ";
-  if (sc.haptics.local_patch)
-    os << (sc.haptics.coupling.refine ? "local refinement asked for but not applied: the multirate path"
-                                        " does not refine yet"
-                                      : "local refinement off (the multirate path does not refine)");
-  else if (!haptics::mesh_needs_refinement(m, r, radius)) os << "no local refinement needed";
-  else if (sc.haptics.coupling.refine)
-    os << "local refinement on, a child mesh graded from " << finest * 1e3
-       << " mm under each touching fingertip where its triangle is coarser (docs/contact.md)";
+  const haptics::Refine asked = sc.haptics.coupling.refine;
+  const bool multirate = sc.haptics.local_patch;
+  if (multirate && sc.haptics.local_model == haptics::LocalModel::Patch)
+    os << (asked == haptics::Refine::Off ? "local refinement off (the patch model has its own patch)"
+                                         : "no local refinement: the patch model renders from its own "
+                                           "subdivided patch");
+  else if (!haptics::mesh_needs_refinement(m, r, radius))
+    os << "no local refinement needed";
+  else if (haptics::refines(asked, multirate))
+    os << "local refinement on (haptics.refine = \"" << haptics::to_string(asked) << "\"), a child mesh graded from "
+       << finest * 1e3 << " mm under each touching fingertip where its triangle is coarser (docs/contact.md)";
+  else if (asked == haptics::Refine::Auto)
+    os << "local refinement off with direct coupling (haptics.refine = \"auto\"): a child's settle "
+          "does not fit in the haptic period beside the step; the felt force is stiffer than the "
+          "cloth's (docs/contact.md gives by how much), refine = \"on\" to refine anyway";
   else
     os << "local refinement off (haptics.refine = \"off\"), so the felt force is stiffer than the "
           "cloth's (docs/contact.md gives by how much)";

@@ -550,6 +550,7 @@ void FingertipContact::end_step(const cloth::ClothState& s) {
     r.proxy = P.x;
     r.target = P.target;
     r.target_velocity = P.target_velocity;
+    r.coupling_stiffness = P.stiffness;
     if (!valid_[f]) {  // no device sample this step
       last_disp_[f].setZero();
       continue;

@@ -34,6 +34,9 @@ struct ProxyResult {
   double normal_force = 0.0;     ///< sum of the contacts' normal force magnitudes, N
   double friction_force = 0.0;   ///< sum of the contacts' tangential force magnitudes, N
   double penetration = 0.0;      ///< deepest cloth point inside the sphere, m
+  /// N/m: the coupling spring the step solved with (the scene's, or with local refinement the
+  /// scene's in series with the compliance the global mesh lacks: LocalRefinement).
+  double coupling_stiffness = 0.0;
 };
 
 /// Global cloth state at one simulation step, for the haptic loop.

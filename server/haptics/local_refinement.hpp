@@ -35,6 +35,15 @@ struct RefinementParams {
   int iterations = 2;  ///< Newton iterations per step (a new child: 4x)
 };
 
+/// Whether to refine where the global mesh does not resolve the contact patch. Auto: on the
+/// multirate path's response model, whose global step leaves the simulation thread time for the
+/// children (0.3-1 ms a settle), and off with direct coupling, whose whole step must fit in the
+/// 1 ms haptic period (the main job's step p99 went from 0.45 to 4.8 ms: docs/contact.md).
+enum class Refine { Auto, On, Off };
+inline const char* to_string(Refine r) { return r == Refine::Auto ? "auto" : r == Refine::On ? "on" : "off"; }
+/// `multirate`: the response model renders between global steps (else direct coupling).
+inline bool refines(Refine r, bool multirate) { return r == Refine::On || (r == Refine::Auto && multirate); }
+
 /// m: the child's edge at the contact point for a fingertip of `radius`.
 double finest_edge(const RefinementParams& p, double radius);
 /// The cloth's longest rest edge, m.

@@ -13,7 +13,10 @@ Vec3 ResponseContact::follow(const ClothSnapshot& s, const std::array<Fingertip,
   for (int q = 0; q < fingers; ++q) {
     const ProxyResult& rq = s.proxy[q];
     if (!present[q] || !rq.valid) continue;
-    const Vec3 pull = k_ * (tips[q].centre - rq.target) + c_ * (tips[q].velocity - rq.target_velocity);
+    // The spring the step solved with: with local refinement the scene's in series with the
+    // compliance the global mesh lacks, so the force follows the refined cloth's stiffness.
+    const double k = rq.coupling_stiffness > 0.0 ? rq.coupling_stiffness : k_;
+    const Vec3 pull = k * (tips[q].centre - rq.target) + c_ * (tips[q].velocity - rq.target_velocity);
     const Eigen::Matrix3d& R = s.response[p * kMaxFingers + q];
     F += R * pull - (p == q ? pull : Vec3::Zero());
   }

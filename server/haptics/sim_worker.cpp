@@ -63,7 +63,8 @@ SimWorker::SimWorker(const cloth::ClothModel& model, const cloth::IntegratorConf
   } else {
     tips_ = std::make_unique<FingertipContact>(model_, tris_, fingers_,
                                                contact_params(fp_, cp_.margin), integ_);
-    if (cp_.refine && mode == Rendering::Direct && mesh_needs_refinement(model_, cp_.refinement, fp_.radius))
+    if (refines(cp_.refine, mode == Rendering::Response) &&
+        mesh_needs_refinement(model_, cp_.refinement, fp_.radius))
       refine_ = std::make_unique<LocalRefinement>(model_, contact_params(fp_, cp_.margin),
                                                   integ_.config().gravity, cp_.refinement);
   }

@@ -29,10 +29,9 @@ struct CouplingParams {
   double finger_mass = 0.05;
   /// Reach beyond the fingertip radius, m, within which the cloth is searched for contacts.
   double margin = 0.01;
-  /// Local refinement under the fingertips (direct coupling only; LocalRefinement): children
-  /// where the global mesh does not resolve the contact patch. Off by default: its cost on the
-  /// shipped scenes is not yet inside the step's budget (docs/contact.md).
-  bool refine = false;
+  /// Local refinement under the fingertips (direct coupling and the response model;
+  /// LocalRefinement): children where the global mesh does not resolve the contact patch.
+  Refine refine = Refine::Auto;
   RefinementParams refinement{};
 };
 
@@ -59,7 +58,8 @@ class SimWorker {
   const cloth::Integrator& integrator() const { return integ_; }
   /// Direct coupling's contact (nullptr with local patches).
   const FingertipContact* fingertips() const { return tips_.get(); }
-  /// The local refinement (nullptr when off, or when the global mesh resolves the patch).
+  /// The local refinement (nullptr when off, with the patch model, or when the global mesh
+  /// resolves the contact patch).
   const LocalRefinement* refinement() const { return refine_.get(); }
   double kernel_radius() const { return kernel_r_; }
   /// The patch model's radius (0: no patch model): each snapshot then lists, per finger, the

@@ -147,9 +147,10 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
        {"haptics.kernel_radius", "local_model = \"patch\""}},
       {"UnknownLocalModel", kScene + "\n[haptics]\nlocal_model = \"springs\"\n", 18,
        {"haptics.local_model", "\"response\" or \"patch\""}},
-      {"UnknownRefine", kScene + "\n[haptics]\nrefine = \"maybe\"\n", 18, {"haptics.refine", "\"on\" or \"off\""}},
-      {"RefineOnTheMultiratePath", kScene + "\n[haptics]\nlocal_patch = \"on\"\nrefine = \"on\"\n", 19,
-       {"haptics.refine", "direct coupling only"}},
+      {"UnknownRefine", kScene + "\n[haptics]\nrefine = \"maybe\"\n", 18, {"haptics.refine", "\"auto\", \"on\" or \"off\""}},
+      {"RefineWithThePatchModel",
+       kScene + "\n[haptics]\nlocal_patch = \"on\"\nlocal_model = \"patch\"\nrefine = \"on\"\n", 20,
+       {"haptics.refine", "the patch model"}},
       {"UnknownDeviceDriver", kScene + "\n[device]\ndriver = \"phantom\"\n", 18,
        {"key 'device.driver'", "unknown driver 'phantom'", "mock"}},
       {"UnknownDeviceClock", kScene + "\n[device]\ndriver = \"udp\"\nclock = \"gps\"\n", 19,
@@ -174,8 +175,12 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
   const auto path = (dir_ / "scene.toml").string();
   for (const BadFile& c : cases) expect_bad_file(c, path, [&] { scene(c.text); });
   EXPECT_NO_THROW(scene(kScene + "\n[haptics]\nlocal_patch = \"on\"\nlocal_model = \"patch\"\nkernel_radius = 0.02\n"));
-  EXPECT_FALSE(scene(kScene).haptics.coupling.refine);
-  EXPECT_TRUE(scene(kScene + "\n[haptics]\nrefine = \"on\"\n").haptics.coupling.refine);
+  using hapticloth::haptics::Refine;
+  EXPECT_EQ(scene(kScene).haptics.coupling.refine, Refine::Auto);
+  EXPECT_EQ(scene(kScene + "\n[haptics]\nrefine = \"on\"\n").haptics.coupling.refine, Refine::On);
+  EXPECT_EQ(scene(kScene + "\n[haptics]\nrefine = \"off\"\n").haptics.coupling.refine, Refine::Off);
+  EXPECT_EQ(scene(kScene + "\n[haptics]\nlocal_patch = \"on\"\nrefine = \"on\"\n").haptics.coupling.refine,
+            Refine::On);
 }
 
 TEST_F(SceneFileTest, PcgPreconditionerKey) {

@@ -73,7 +73,8 @@ inline haptics::SessionConfig touch_session(double friction) {
 struct DrumSpec {
   double centre_edge = 0.25e-3;  ///< m, rest edge length at the centre of the graded disc
   double rim_edge = 0.0;         ///< m, largest edge; 0 = max(5 mm, centre_edge)
-  bool refine = false;           ///< local refinement where the mesh does not resolve the patch
+  /// Local refinement where the mesh does not resolve the patch (Auto: on the multirate path).
+  haptics::Refine refine = haptics::Refine::Off;
   MembraneDrum drum{};           ///< Et 1000 N/m, pre-stretch 1.1, rim radius 0.1 m, sphere 8 mm
   double shear = 500.0;          ///< Gt, N/m (isotropic with Poisson 0: Et / 2)
   double density = 0.1;          ///< kg/m^2
