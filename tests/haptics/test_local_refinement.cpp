@@ -32,6 +32,33 @@ TEST(LocalRefinement, DrumPressOnAnyMeshMatchesMembraneTheory) {
   }
 }
 
+// The same press with fingertips of 5 and 12 mm radius, and with the 8 mm one pressed 3 cm off the
+// centre (the reference there: the exact centred solution with the disc's Green function for the
+// offset, membrane_reference.hpp off_centre_force), on the same uniform meshes: within 3%.
+TEST(LocalRefinement, DrumPressWithOtherFingertipsAndOffCentre) {
+  struct Case {
+    double radius, offset;
+  };
+  for (const Case c : {Case{5e-3, 0.0}, Case{12e-3, 0.0}, Case{8e-3, 0.03}})
+    for (double h : {2e-3, 4e-3, 8e-3, 12e-3, 25e-3}) {
+      test::DrumSpec spec;
+      spec.centre_edge = spec.rim_edge = h;
+      spec.drum.sphere_radius = c.radius;
+      spec.offset = c.offset;
+      spec.speed = 4e-3;
+      spec.device_depth = 3.6e-3;
+      spec.refine = haptics::Refine::On;
+      const test::DrumResult r = test::press_drum(spec);
+      std::printf("fingertip %4.1f mm, %2.0f mm off centre, edge %4.1f mm: force error at 1/2/3 mm", c.radius * 1e3,
+                  c.offset * 1e3, h * 1e3);
+      for (const auto& p : r.points) std::printf(" %+.2f%%", 100.0 * p.error());
+      std::printf("; onset %.3f mm\n", r.onset_depth * 1e3);
+      for (const auto& p : r.points)
+        EXPECT_LE(std::abs(p.error()), 0.03) << c.radius << " " << c.offset << " " << h << " " << p.depth;
+      EXPECT_LE(std::abs(r.onset_depth), 1e-4) << c.radius << " " << c.offset << " " << h;
+    }
+}
+
 // The multirate path (the response model at 10 and 20 ms global steps) refines the same way: the
 // compliance of the child goes in series with the coupling the step solves with, and the force
 // between steps follows the step's response with that spring (ResponseContact). Uniform 8 and

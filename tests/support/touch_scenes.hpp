@@ -78,6 +78,7 @@ struct DrumSpec {
   MembraneDrum drum{};           ///< Et 1000 N/m, pre-stretch 1.1, rim radius 0.1 m, sphere 8 mm
   double shear = 500.0;          ///< Gt, N/m (isotropic with Poisson 0: Et / 2)
   double density = 0.1;          ///< kg/m^2
+  double offset = 0.0;           ///< m, the press's distance from the centre (along x)
   double speed = 1e-3;           ///< m/s, the device's descent (quasi-static)
   double device_depth = 4.5e-3;  ///< m the device goes below touch
   double hold = 0.0;             ///< s the device then stays there
@@ -141,9 +142,10 @@ inline DrumResult press_drum(const DrumSpec& spec) {
   const double top = r + 0.001, bottom = r - spec.device_depth;
   const double t_end = (top - bottom) / spec.speed;
   devices::Trajectory tr(2);
-  tr.add(0, 0.0, Vec3(0, 0, top));
-  tr.add(0, t_end, Vec3(0, 0, bottom));
-  if (spec.hold > 0.0) tr.add(0, t_end + spec.hold, Vec3(0, 0, bottom));
+  const Vec3 at(spec.offset, 0.0, 0.0);
+  tr.add(0, 0.0, at + Vec3(0, 0, top));
+  tr.add(0, t_end, at + Vec3(0, 0, bottom));
+  if (spec.hold > 0.0) tr.add(0, t_end + spec.hold, at + Vec3(0, 0, bottom));
   tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));  // parked away
   haptics::SessionConfig sc = touch_session(0.0);
   sc.finger.radius = r;
@@ -177,7 +179,7 @@ inline DrumResult press_drum(const DrumSpec& spec) {
         p.force = curve[i - 1].second + u * (curve[i].second - curve[i - 1].second);
         break;
       }
-    p.reference = sphere_indentation(d, target).force;
+    p.reference = spec.offset > 0.0 ? off_centre_force(d, target, spec.offset) : sphere_indentation(d, target).force;
     res.points.push_back(p);
   }
   return res;
