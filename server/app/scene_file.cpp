@@ -169,11 +169,52 @@ void load_device(const TomlFile& f, const toml::table& t, const std::string& pat
   }
 }
 
+// A key that has a new name: read under either, never both; the old one adds a note naming the
+// new one. Returns the value, or `fallback` when neither is there.
+std::string renamed_string(const TomlFile& f, const toml::table& t, const char* now, const char* old,
+                           const std::string& fallback) {
+  if (t.contains(now) && t.contains(old))
+    f.fail(t.get(old), std::string("haptics.") + old,
+           std::string("is the old name of haptics.") + now + "; give only " + now);
+  if (!t.contains(old)) return f.string(t, "haptics", now, fallback);
+  return f.string(t, "haptics", old, fallback);
+}
+
+// haptics.rendering ("auto", "direct", "multirate") and haptics.multirate_model ("response",
+// "patch"); their old names local_patch ("auto", "off", "on") and local_model are still read.
+void load_rendering(const TomlFile& f, const toml::table& t, Scene& s) {
+  const bool old_rendering = t.contains("local_patch");
+  std::string r = renamed_string(f, t, "rendering", "local_patch", s.rendering);
+  if (old_rendering) {
+    if (r != "auto" && r != "on" && r != "off")
+      f.fail(t.get("local_patch"), "haptics.local_patch", "must be \"auto\", \"on\" or \"off\" "
+             "(its new name: rendering = \"auto\", \"multirate\" or \"direct\")");
+    const std::string now = r == "on" ? "multirate" : r == "off" ? "direct" : "auto";
+    s.notes.push_back(f.path() + ":" + std::to_string(t.get("local_patch")->source().begin.line) +
+                      ": haptics.local_patch is now haptics.rendering: local_patch = \"" + r +
+                      "\" read as rendering = \"" + now + "\"");
+    r = now;
+  } else if (r != "auto" && r != "direct" && r != "multirate") {
+    f.fail(t.get("rendering"), "haptics.rendering", "must be \"auto\", \"direct\" or \"multirate\"");
+  }
+  s.rendering = r;
+  const bool old_model = t.contains("local_model");
+  const std::string model = renamed_string(f, t, "multirate_model", "local_model",
+                                           haptics::to_string(s.multirate_model));
+  const char* key = old_model ? "local_model" : "multirate_model";
+  if (model == "response") s.multirate_model = haptics::LocalModel::Response;
+  else if (model == "patch") s.multirate_model = haptics::LocalModel::Patch;
+  else f.fail(t.get(key), std::string("haptics.") + key, "must be \"response\" or \"patch\"");
+  if (old_model)
+    s.notes.push_back(f.path() + ":" + std::to_string(t.get("local_model")->source().begin.line) +
+                      ": haptics.local_model is now haptics.multirate_model");
+}
+
 void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   f.only_keys(t, "haptics", {"rate", "finger_radius", "stiffness", "damping", "friction",
                              "kernel_radius", "margin", "preroll", "slew_rate", "watchdog_ms",
-                             "ramp_ms", "max_force", "realtime", "local_patch", "local_model",
-                             "finger_mass", "contact_stiffness", "refine"});
+                             "ramp_ms", "max_force", "realtime", "rendering", "multirate_model",
+                             "local_patch", "local_model", "finger_mass", "contact_stiffness", "refine"});
   auto& h = s.haptics;
   auto positive = [&](const char* key, double& v, const char* unit) {
     v = f.number(t, "haptics", key, v);
@@ -201,36 +242,30 @@ void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
   h.gate.ramp_time = ramp * 1e-3;
   non_negative("max_force", h.gate.max_force, "N; 0 = the device's");
   h.try_realtime = f.boolean(t, "haptics", "realtime", h.try_realtime);
-  s.local_patch = f.string(t, "haptics", "local_patch", s.local_patch);
-  if (s.local_patch != "auto" && s.local_patch != "on" && s.local_patch != "off")
-    f.fail(t.get("local_patch"), "haptics.local_patch", "must be \"auto\", \"on\" or \"off\"");
+  load_rendering(f, t, s);
   const std::string refine = f.string(t, "haptics", "refine", haptics::to_string(h.coupling.refine));
   if (refine == "auto") h.coupling.refine = haptics::Refine::Auto;
   else if (refine == "on") h.coupling.refine = haptics::Refine::On;
   else if (refine == "off") h.coupling.refine = haptics::Refine::Off;
   else f.fail(t.get("refine"), "haptics.refine", "must be \"auto\", \"on\" or \"off\"");
-  const std::string model = f.string(t, "haptics", "local_model", haptics::to_string(h.local_model));
-  if (model == "response") h.local_model = haptics::LocalModel::Response;
-  else if (model == "patch") h.local_model = haptics::LocalModel::Patch;
-  else f.fail(t.get("local_model"), "haptics.local_model", "must be \"response\" or \"patch\"");
-  if (h.coupling.refine == haptics::Refine::On && s.local_patch == "on" &&
-      h.local_model == haptics::LocalModel::Patch)
+  if (h.coupling.refine == haptics::Refine::On && s.rendering == "multirate" &&
+      s.multirate_model == haptics::LocalModel::Patch)
     f.fail(t.get("refine"), "haptics.refine",
-           "applies to direct coupling and to local_model = \"response\"; the patch model "
+           "applies to direct coupling and to multirate_model = \"response\"; the patch model "
            "renders from its own subdivided patch");
   // Direct coupling and the response model solve the fingertip spheres with the cloth: no
   // kernel spreads the force and the contact itself exchanges the impact momentum.
   for (const char* key : {"kernel_radius", "finger_mass"}) {
     if (!t.contains(key)) continue;
-    if (s.local_patch == "off")
+    if (s.rendering == "direct")
       f.fail(t.get(key), std::string("haptics.") + key,
-             "applies only to local_patch = \"on\" with local_model = \"patch\"; with direct "
-             "coupling the fingertip is a sphere solved with the cloth (its contact is set by "
-             "contact_stiffness)");
-    if (h.local_model != haptics::LocalModel::Patch)
+             "applies only to rendering = \"multirate\" with multirate_model = \"patch\"; with "
+             "direct coupling the fingertip is a sphere solved with the cloth (its contact is set "
+             "by contact_stiffness)");
+    if (s.multirate_model != haptics::LocalModel::Patch)
       f.fail(t.get(key), std::string("haptics.") + key,
-             "applies only to local_model = \"patch\"; the response model solves the fingertip "
-             "sphere with the cloth (its contact is set by contact_stiffness)");
+             "applies only to multirate_model = \"patch\"; the response model solves the "
+             "fingertip sphere with the cloth (its contact is set by contact_stiffness)");
   }
 }
 

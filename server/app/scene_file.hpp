@@ -31,9 +31,16 @@ struct Scene {
   /// [haptics]: the 1 kHz loop, fingertips, coupling and safety gate.
   haptics::SessionConfig haptics;
   double preroll = 0.0;  ///< s simulated (as fast as possible) before the device session starts
-  /// Local refinement (4.2): "auto" (on when the global step does not fit in the haptic
-  /// period), "on" or "off".
-  std::string local_patch = "auto";
+  /// How the simulation and the haptic loop share the fingertips (haptics.rendering): "direct"
+  /// (a global step per haptic tick), "multirate" (the haptic loop renders from a local model
+  /// between longer global steps), or "auto" (multirate when the global step does not fit in
+  /// the haptic period, measured at start-up).
+  std::string rendering = "auto";
+  /// The multirate path's local model (haptics.multirate_model).
+  haptics::LocalModel multirate_model = haptics::LocalModel::Response;
+  /// What the loader has to say about the file that is not an error (an old key read as its
+  /// new name), one line each; the server prints them.
+  std::vector<std::string> notes;
 };
 
 /// Loads a scene; relative paths inside it are resolved against the scene file's folder.

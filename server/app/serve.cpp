@@ -39,8 +39,9 @@ std::string refinement_stage(const Scene& sc, const cloth::ClothModel& m) {
      << " mm against a " << radius * 1e3 << " mm fingertip, whose contact patch " << finest * 1e3
      << " mm edges resolve: ";
   const haptics::Refine asked = sc.haptics.coupling.refine;
-  const bool multirate = sc.haptics.local_patch;
-  if (multirate && sc.haptics.local_model == haptics::LocalModel::Patch)
+  const haptics::Rendering mode = sc.haptics.rendering;
+  const bool multirate = haptics::multirate(mode);
+  if (mode == haptics::Rendering::Patch)
     os << (asked == haptics::Refine::Off ? "local refinement off (the patch model has its own patch)"
                                          : "no local refinement: the patch model renders from its own "
                                            "subdivided patch");
@@ -66,22 +67,25 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
   std::ostringstream os;
   os << std::fixed << std::setprecision(3);
   const bool fits = step_ms <= haptic_period_ms;
-  if (sc.haptics.local_patch && sc.haptics.local_model == haptics::LocalModel::Response) {
-    os << "multirate, local model response (" << (sc.local_patch == "on" ? "asked for" : "the global step")
+  const haptics::Rendering mode = sc.haptics.rendering;
+  const char* why = sc.rendering == "multirate" ? "asked for" : "the global step";
+  if (mode == haptics::Rendering::Response) {
+    os << "multirate, local model response (" << why
        << " " << step_ms << " ms median at start-up, its matrix formed whole, vs the " << haptic_period_ms
        << " ms haptic period): fingertips solved with the cloth every " << sc.integrator.dt * 1e3
        << " ms, rendered between steps from the cloth's linear response (docs/contact.md)";
-  } else if (sc.haptics.local_patch) {
-    os << "multirate, local model patch (" << (sc.local_patch == "on" ? "asked for" : "the global step")
+  } else if (mode == haptics::Rendering::Patch) {
+    os << "multirate, local model patch (" << why
        << " " << step_ms << " ms median at start-up, its matrix formed whole, vs the " << haptic_period_ms
        << " ms haptic period): a subdivided patch per fingertip at the haptic rate; it does not"
        << " hold a pinch (BENCHMARKS.md)";
   } else if (fits) {
-    os << "direct coupling, no local patch: the global step takes " << step_ms
+    os << "direct coupling (" << (sc.rendering == "direct" ? "asked for" : "the global step fits")
+       << "): the global step takes " << step_ms
        << " ms (median at start-up, its matrix formed whole), within the " << haptic_period_ms
        << " ms haptic period: the fingertips are spheres solved with the whole cloth";
   } else {
-    os << "local refinement off (asked for): the global step " << step_ms << " ms > haptic period "
+    os << "direct coupling (asked for): the global step " << step_ms << " ms > haptic period "
        << haptic_period_ms << " ms; the fingertips are solved with the cloth and the force of the"
        << " last step is rendered until the next";
   }
@@ -90,7 +94,7 @@ std::vector<std::string> stages(const Scene& sc, const cloth::ClothModel& m, dou
   if (sc.integrator.alpha < 1.0) {
     std::ostringstream a;
     a << "alpha " << sc.integrator.alpha;
-    if (sc.haptics.local_patch && sc.haptics.local_model == haptics::LocalModel::Patch)
+    if (mode == haptics::Rendering::Patch)
       a << " < 1 with the patch model: alpha 1 from the first energy explosion on (BENCHMARKS.md)";
     else  // the proxies are solved with the cloth (direct coupling, response model)
       a << " < 1 asked for, alpha 1 used for the fingertips' stiff contacts (docs/contact.md)";
@@ -178,14 +182,15 @@ Plan plan(Scene& scene, const cloth::ClothModel& model, const devices::DeviceHan
   std::sort(step_ms.begin(), step_ms.end());
   const double median_ms = step_ms[step_ms.size() / 2];
   haptics::SessionConfig& sc = p.session;
-  scene.haptics.local_patch = sc.local_patch =
-      scene.local_patch == "on" || (scene.local_patch == "auto" && median_ms > 1000.0 / sc.haptic_rate);
+  const bool multirate =
+      scene.rendering == "multirate" || (scene.rendering == "auto" && median_ms > 1000.0 / sc.haptic_rate);
+  scene.haptics.rendering = sc.rendering = haptics::rendering(multirate, scene.multirate_model);
   // Direct coupling renders the force of the last global step (the fingertips are solved with
   // the cloth): with a longer step it stays stable but the force changes only once per step,
   // a staircase the hand feels. So the step is shortened to the haptic period.
   std::string dt_note;
   const double period = 1.0 / sc.haptic_rate;
-  if (!sc.local_patch && scene.integrator.dt > period * (1.0 + 1e-9)) {
+  if (!multirate && scene.integrator.dt > period * (1.0 + 1e-9)) {
     std::ostringstream os;
     os << "global dt " << scene.integrator.dt * 1e3 << " ms shortened to the haptic period "
        << period * 1e3 << " ms (direct coupling renders each global step's force)";
@@ -275,6 +280,7 @@ std::string run(const Scene& scene, const ServeOptions& opt, const cloth::ClothM
     const char* ticks = scene.haptics.device_clock ? "real time, a tick on each device sample" : "real time";
     out << "clock            " << (opt.realtime ? ticks : "stepped (as fast as possible)")
         << ", " << duration << " s after " << scene.preroll << " s preroll\n";
+    for (const auto& n : scene.notes) out << "note             " << n << "\n";
     for (const auto& s : p.stages) out << "stage            " << s << "\n";
     out.flush();
   }
@@ -314,6 +320,7 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
     j["scene"] = scene.name;
     j["device"] = dev.info().name;
     j["stages"] = p.stages;
+    j["notes"] = scene.notes;
     j["device_counters"] = {{"samples", dc.samples}, {"dropped", dc.dropped_total()},
                             {"send_errors", dc.send_errors}};
     if (!record.empty())

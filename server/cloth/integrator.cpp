@@ -16,9 +16,6 @@ namespace {
 // first, the stroke's Coulomb error per contact went from p99 2.7% to 3.1% (its friction revised
 // at the line search's points), while the cycling it is for takes many re-solves.
 constexpr int kPlainRevisions = 1;
-// Steps up to this long (direct coupling's; the multirate path's global steps are 5-40 ms)
-// revise their contacts on local settles, confirmed by a whole solve (revise_contacts).
-constexpr double kSettleStep = 2e-3;  // s
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
@@ -560,7 +557,9 @@ bool Integrator::revise_contacts(const ClothState& s, double h) {
   bool cut = false;  // dv_ is the line search's point short of the re-solve dv_full_
   bool same = false;  // the last re-solve left dv_ as it was (it took no iteration)
   bool unconfirmed = false;  // dv_ is a settle's: the cloth away from the contacts not solved since
-  const bool settles = h <= kSettleStep && solver_->settles_locally();
+  // Direct coupling's short steps revise their contacts on local settles, confirmed by a whole
+  // solve; the multirate path's long ones solve whole.
+  const bool settles = cfg_.contact_steps == ContactSteps::Short && solver_->settles_locally();
   for (int rev = 0; contacts_ && rev < cfg_.max_contact_revisions; ++rev) {
     springs_solved_.assign(springs_.begin(), springs_.end());
     if (!contacts_->revise(xn_, proxies_, cut, same)) {

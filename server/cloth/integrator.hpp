@@ -19,6 +19,13 @@
 
 namespace hapticloth::cloth {
 
+/// What a step's contacts (StepContacts) are: Short, the steps of direct coupling, one per haptic
+/// tick (their contacts are revised on local settles, confirmed by a whole solve, and their
+/// friction corrections wait a step); Long, the multirate path's global steps of 5-40 ms (each
+/// re-solve is whole, and the step keeps revising until its contacts hold). The rendering mode
+/// chooses (haptics::Rendering), not the step's length.
+enum class ContactSteps { Short, Long };
+
 struct IntegratorConfig {
   double dt = 1e-3;     ///< s
   double alpha = 1.0;   ///< implicitness, in [0.5, 1] (eq. 8): 1 backward Euler, 0.5 midpoint
@@ -29,6 +36,7 @@ struct IntegratorConfig {
   double explosion_ratio = 1.0;   ///< energy gain per step, relative to the energy scale,
                                   ///< above which a step is an energy explosion
   int proxies = 0;                ///< massless proxy nodes solved with the cloth (fingertips)
+  ContactSteps contact_steps = ContactSteps::Short;  ///< with proxies
   int max_contact_revisions = 16; ///< re-solves of a step whose contact set changed
   /// Threads of the element assembly and the PCG's sweeps: 1, or 2 (a helper thread shares
   /// them with the stepping thread; meshes under kMinParallelElements stay on one).

@@ -21,11 +21,6 @@ constexpr double kPullDepth = 1e-6;  // m
 constexpr double kAddDepth = 5e-6;   // m
 // Re-solves of a step that may release contacts (see revise()).
 constexpr int kFreeRevisions = 12;
-// Steps up to this long are direct coupling's (the multirate path's global steps are 5-40 ms):
-// they defer their late friction corrections to the next step (revise()), their pressure law
-// stiffens with depth (linearize_pressure), their contacts are one-sided for the integrator's
-// line search (make_spring) and come back from a release with their state (add_contacts).
-constexpr double kShortStep = 2e-3;  // s
 // Released contacts and friction corrections ask for a re-solve once their forces add up to this
 // share of the finger's normal force; smaller ones take effect from the next step. 1% is the
 // bound the stroke's Coulomb friction is held to, and a tenth of the force a person can tell
@@ -50,7 +45,12 @@ FingertipContact::FingertipContact(const cloth::ClothModel& model,
       fingers_(fingers),
       p_(p),
       integ_(integ),
-      bp_(model.rest_positions, tris) {
+      bp_(model.rest_positions, tris),
+      // Direct coupling's short steps (cloth::ContactSteps) defer their late friction corrections
+      // to the next step (revise()), their pressure law stiffens with depth (linearize_pressure),
+      // their contacts are one-sided for the integrator's line search (make_spring) and come back
+      // from a release with their state (add_contacts).
+      short_steps_(integ.config().contact_steps == cloth::ContactSteps::Short) {
   if (!devices::valid_finger_count(fingers_))
     throw std::invalid_argument("fingertip contact: a device has " + std::to_string(devices::kMinFingers) +
                                 " to " + std::to_string(devices::kMaxFingers) + " fingers, not " +
@@ -217,7 +217,7 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
 // cell of the stability map went 3.7 mm into a fingertip (2 mm allowed).
 void FingertipContact::linearize_pressure(Sample& q) const {
   const double kw = p_.pressure_stiffness * q.w, d = std::max(q.depth0, 0.0);
-  q.kn = h_ <= kShortStep ? kw * (1.0 + d / p_.stiffening_depth) : kw;
+  q.kn = short_steps_ ? kw * (1.0 + d / p_.stiffening_depth) : kw;
   q.f0 = q.kn * q.depth0;
 }
 
@@ -234,7 +234,7 @@ void FingertipContact::make_spring(int f, const Sample& q, cloth::PointSpring& s
   for (int i = 0; i < 3; ++i) sp.b[i] = q.b[i];
   sp.proxy = f;
   sp.key = q.id;
-  sp.kn = h_ <= kShortStep ? q.kn : 0.0;
+  sp.kn = short_steps_ ? q.kn : 0.0;
   sp.depth0 = q.depth0;
   sp.n = q.n;
   sp.f = q.f0 * q.n;
@@ -390,7 +390,7 @@ bool FingertipContact::add_contacts(int f, const std::vector<Vec3>& x_new, const
       // would stick to where it was at the start, slide, be released and come back sticking
       // again: the cycle a fast stroke's rim samples ran to the revision cap.
       const auto back = std::find_if(F.gone.begin(), F.gone.end(), [&](const Sample& g) { return g.id == id; });
-      if (back != F.gone.end() && h_ <= kShortStep) {
+      if (back != F.gone.end() && short_steps_) {
         F.now.push_back(*back);
         F.gone.erase(back);
         rejoin(F.now.back(), x1 - point(s0_->x, t, q.b) - (p1 - p0));
@@ -487,7 +487,7 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
   // `hapticloth-bench step --script`). So the free revisions end there.
   if (same_candidate) revisions_ = std::max(revisions_, kFreeRevisions);
   const bool settle = revisions_ < kFreeRevisions;
-  const bool defer = !settle && h_ <= kShortStep;
+  const bool defer = !settle && short_steps_;
   ++revisions_;
   bool changed = false;
   for (int f = 0; f < fingers_; ++f) {

@@ -134,6 +134,7 @@ class FingertipContact final : public cloth::StepContacts {
   ContactParams p_;
   cloth::Integrator& integ_;
   BroadPhase bp_;
+  bool short_steps_;  // direct coupling's steps, one per haptic tick (cloth::ContactSteps)
   double spacing_;
   std::vector<int> sub_, first_;  // per triangle: subdivisions, first sample id
   std::array<Finger, kMaxFingers> fing_;

@@ -3,17 +3,14 @@
 #include <algorithm>
 #include <cmath>
 
-#include "haptics/proxy_contact.hpp"
-#include "haptics/response_contact.hpp"
 
 namespace hapticloth::haptics {
 
-HapticLoop::HapticLoop(const std::vector<std::array<int, 3>>& triangles, int vertices,
-                       devices::DeviceHandle& device, devices::SafetyGate& gate,
+HapticLoop::HapticLoop(devices::DeviceHandle& device, devices::SafetyGate& gate,
                        const FingerParams& finger, const DeviceMapping& map,
+                       std::unique_ptr<SurfaceContact> contact, Rendering mode,
                        TripleBuffer<ClothSnapshot>& from_sim, TripleBuffer<HapticReport>& to_sim)
-    : tris_(triangles),
-      dev_(device),
+    : dev_(device),
       gate_(gate),
       fp_(finger),
       k_(std::min(finger.stiffness, device.info().max_stiffness)),
@@ -22,19 +19,11 @@ HapticLoop::HapticLoop(const std::vector<std::array<int, 3>>& triangles, int ver
       out_(to_sim),
       fingers_(device.info().fingers),
       period_(1.0 / device.info().nominal_rate),
+      contact_(std::move(contact)),
       catch_up_(period_),
       passivity_(k_, gate.max_force()) {
-  (void)vertices;
-  direct_ = std::make_unique<ProxyContact>(k_);
-  contact_ = direct_.get();
-}
-
-void HapticLoop::enable_local_patch(const std::vector<Vec3>& rest, const std::vector<char>& pinned,
-                                    const PatchParams& p) {
-  patch_ = std::make_unique<PatchContact>(tris_, rest, pinned, p, fingers_, fp_.radius, k_,
-                                          fp_.damping, fp_.friction);
-  contact_ = patch_.get();
-  bound_ = std::make_unique<EnergyBound>(period_);
+  // The multirate path renders from a model that is not the cloth itself: bounded by energy.
+  if (multirate(mode)) bound_ = std::make_unique<EnergyBound>(period_);
 }
 
 bool HapticLoop::wind_down(double now) noexcept {
@@ -70,12 +59,6 @@ void HapticLoop::absent(FingerReport& r, const Vec3& centre, const Vec3& velocit
   r.proxy = centre;
   r.velocity = velocity;
   r.impacts = impacts;
-}
-
-void HapticLoop::enable_response() {
-  response_ = std::make_unique<ResponseContact>(k_, fp_.damping, fp_.friction);
-  contact_ = response_.get();
-  bound_ = std::make_unique<EnergyBound>(period_);
 }
 
 // The multirate models' forces within what the hand has put into them (energy_bound.hpp); what

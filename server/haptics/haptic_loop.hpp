@@ -1,9 +1,10 @@
 // The 1 kHz haptic tick (sections 3.4 and 4.1): read the device, map each fingertip into the
 // scene (a late tick's motion caught up over the ticks it missed: late_tick.hpp), ask the
-// surface contact (ProxyContact: the proxies solved with the cloth; ResponseContact or
-// PatchContact: the multirate path's local models) for the force, keep each coupling passive
-// (passivity.hpp), pass the force through the safety gate, write it, and report the fingertips
-// and contacts to the simulation. tick() allocates nothing and takes no lock.
+// rendering mode's haptic half (SurfaceContact: rendering.hpp) for the force, keep the
+// multirate path's models within the energy the hand gave them (energy_bound.hpp) and each
+// coupling passive (passivity.hpp), pass the force through the safety gate, write it, and
+// report the fingertips and contacts to the simulation. tick() allocates nothing and takes no
+// lock.
 #pragma once
 
 #include <memory>
@@ -17,21 +18,13 @@
 #include "haptics/energy_bound.hpp"
 #include "haptics/handoff.hpp"
 #include "haptics/late_tick.hpp"
+#include "haptics/params.hpp"
 #include "haptics/passivity.hpp"
-#include "haptics/patch_contact.hpp"
 #include "haptics/surface_contact.hpp"
 #include "haptics/stats.hpp"
 
 namespace hapticloth::haptics {
 
-struct FingerParams {
-  double radius = 0.008;     ///< m, fingertip sphere
-  double stiffness = 800.0;  ///< N/m, virtual coupling spring (clamped to the device's max_stiffness)
-  double damping = 1.0;      ///< N s/m, virtual coupling damper
-  double friction = 0.5;     ///< Coulomb coefficient (stick and slip)
-  double contact_stiffness = 3e9;  ///< Pa/m, contact pressure per metre of depth into the sphere
-  double max_force = 0.0;    ///< N, the most the coupling asks of the cloth (the gate's limit; 0 = none)
-};
 
 /// Device frame -> scene frame: p_scene = origin + R p_device (R a rotation).
 struct DeviceMapping {
@@ -41,10 +34,10 @@ struct DeviceMapping {
 
 class HapticLoop {
  public:
-  HapticLoop(const std::vector<std::array<int, 3>>& triangles, int vertices,
-             devices::DeviceHandle& device, devices::SafetyGate& gate, const FingerParams& finger,
-             const DeviceMapping& map, TripleBuffer<ClothSnapshot>& from_sim,
-             TripleBuffer<HapticReport>& to_sim);
+  /// `contact`: the haptic half of rendering mode `mode` (rendering_modes.hpp).
+  HapticLoop(devices::DeviceHandle& device, devices::SafetyGate& gate, const FingerParams& finger,
+             const DeviceMapping& map, std::unique_ptr<SurfaceContact> contact, Rendering mode,
+             TripleBuffer<ClothSnapshot>& from_sim, TripleBuffer<HapticReport>& to_sim);
 
   /// Before the simulation's first step: reads the device and reports where its fingertips are
   /// (touching nothing, no force sent), so that the first step already has them. Without it the
@@ -58,17 +51,9 @@ class HapticLoop {
   /// down). Returns true once the force sent to the device is zero on every finger.
   bool wind_down(double now) noexcept;
 
-  /// Local refinement (4.2): a subdivided patch per fingertip simulated at the haptic rate.
-  /// Set-up only (allocates the patches).
-  void enable_local_patch(const std::vector<Vec3>& rest, const std::vector<char>& pinned,
-                          const PatchParams& p);
-  bool local_patch() const { return patch_ != nullptr; }
-  /// The multirate path's response model (ResponseContact): the fingers rendered from the
-  /// global step's linear response until the next step.
-  void enable_response();
-  std::uint64_t patch_rebuilds() const { return patch_ ? patch_->rebuilds() : 0; }
+  std::uint64_t patch_rebuilds() const { return contact_->patch_rebuilds(); }
   /// Patch builds whose springs were softened to stay stable (PatchParams::max_substeps).
-  std::uint64_t patch_softened() const { return patch_ ? patch_->softened() : 0; }
+  std::uint64_t patch_softened() const { return contact_->patch_softened(); }
   /// The coupling stiffness in use: the scene's, clamped to the device's max_stiffness.
   double coupling_stiffness() const { return k_; }
 
@@ -96,7 +81,6 @@ class HapticLoop {
   static void absent(FingerReport& r, const Vec3& centre, const Vec3& velocity) noexcept;
   void bound_energy(const std::array<Fingertip, kMaxFingers>& tips) noexcept;
 
-  const std::vector<std::array<int, 3>>& tris_;
   devices::DeviceHandle& dev_;
   devices::SafetyGate& gate_;
   FingerParams fp_;
@@ -109,10 +93,7 @@ class HapticLoop {
   devices::DeviceState state_;
   devices::DeviceCommand cmd_, gated_;
   HapticReport report_;
-  std::unique_ptr<SurfaceContact> direct_;
-  std::unique_ptr<PatchContact> patch_;
-  std::unique_ptr<SurfaceContact> response_;
-  SurfaceContact* contact_;  // direct_, patch_ or response_
+  std::unique_ptr<SurfaceContact> contact_;
   std::unique_ptr<EnergyBound> bound_;  // the multirate path's models only
   std::array<Vec3, kMaxFingers> sent_{};  // the forces the device holds since the last tick, scene frame
   LateTickCatchUp catch_up_;

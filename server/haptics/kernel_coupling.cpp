@@ -4,11 +4,53 @@
 
 namespace hapticloth::haptics {
 
-KernelCoupling::KernelCoupling(const cloth::ClothModel& model,
-                               const std::vector<std::array<int, 3>>& tris, int fingers,
-                               double radius, double finger_mass)
-    : model_(model), tris_(tris), fingers_(fingers), R_(radius), finger_mass_(finger_mass) {
+KernelCoupling::KernelCoupling(const cloth::ClothModel& model, cloth::Integrator& integ, int fingers,
+                               double radius, double finger_mass, double patch_radius, double margin)
+    : model_(model),
+      integ_(integ),
+      tris_(model.triangles),
+      fingers_(fingers),
+      R_(radius),
+      finger_mass_(finger_mass),
+      patch_radius_(patch_radius),
+      margin_(margin) {
   w_.assign(model_.num_vertices(), 0.0);
+}
+
+void KernelCoupling::fill(const HapticReport& r, const cloth::ClothState& s, ClothSnapshot& snap) {
+  for (int f = 0; f < fingers_; ++f) snap.proxy[f] = ProxyResult{};
+  snap.has_response = false;
+  list_patch_candidates(r, s, snap);
+}
+
+// The patch model's candidates per finger: the global triangles with a corner within the patch
+// radius of anywhere the fingertip can be before the next snapshot (its travel at its present
+// speed over two steps, plus the contact margin), in index order, up to the snapshot's room
+// (the rest counted). One pass over the triangles here, on the simulation thread.
+void KernelCoupling::list_patch_candidates(const HapticReport& r, const cloth::ClothState& s,
+                                           ClothSnapshot& snap) {
+  const double dt = integ_.config().dt;
+  for (int f = 0; f < fingers_; ++f) {
+    std::vector<int>& out = snap.near_triangles[f];
+    const int room = static_cast<int>(out.size());
+    int n = 0;
+    if (snap.near[f]) {
+      const Vec3& c = r.finger[f].position;
+      const double reach = patch_radius_ + 2.0 * dt * r.finger[f].velocity.norm() + margin_;
+      const double reach2 = reach * reach;
+      bool overflow = false;
+      for (int t = 0; t < static_cast<int>(tris_.size()); ++t) {
+        const auto& g = tris_[t];
+        bool in = false;
+        for (int k = 0; k < 3; ++k) in = in || (s.x[g[k]] - c).squaredNorm() < reach2;
+        if (!in) continue;
+        if (n < room) out[n++] = t;
+        else overflow = true;
+      }
+      overflows_ += overflow;
+    }
+    snap.near_count[f] = n;
+  }
 }
 
 double KernelCoupling::apply_impact(const FingerReport& c, double me, cloth::ClothState& s) {
@@ -43,7 +85,6 @@ void KernelCoupling::apply(const HapticReport& r, cloth::ClothState& s, cloth::I
   auto& f = integ.external_forces();
   auto& K = integ.external_stiffness();
   bool any = false;
-  applied_.setZero();
   for (int fi = 0; fi < fingers_; ++fi) any = any || (r.time >= 0.0 && r.finger[fi].in_contact);
   if (!any && !integ.external_stiffness_on) return;
   std::fill(f.begin(), f.end(), Vec3::Zero());
@@ -65,7 +106,6 @@ void KernelCoupling::apply(const HapticReport& r, cloth::ClothState& s, cloth::I
       sum += w_[i];
     }
     const Vec3 F = -c.force;  // the cloth gets the reaction of what the user feels
-    applied_ += F;
     // Contact stiffness seen by the cloth: the normal spring, and while the friction sticks the
     // tangential spring too (the anchor holds the cloth in every direction). Entering the
     // implicit solve, it keeps the light vertices under the finger stable.

@@ -21,8 +21,8 @@ class PatchContact final : public SurfaceContact {
   void touch(const ClothSnapshot& s, double now, double tick_dt, const Fingertip& tip,
              FingerReport& out) noexcept override;
   void release(int finger) noexcept override { proxy_[finger] = Proxy{}; }
-  std::uint64_t rebuilds() const { return rebuilds_; }
-  std::uint64_t softened() const { return softened_; }
+  std::uint64_t patch_rebuilds() const override { return rebuilds_; }
+  std::uint64_t patch_softened() const override { return softened_; }
 
  private:
   struct Proxy {

@@ -20,6 +20,7 @@
 #include "hal/device_clock.hpp"
 #include "hal/mono_clock.hpp"
 #include "hal/platform_timer.hpp"
+#include "haptics/rendering_modes.hpp"
 
 namespace hapticloth::haptics {
 
@@ -50,28 +51,18 @@ Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& 
   gate_ = std::make_unique<devices::SafetyGate>(dev_.info(), sc_.gate);
   // Nor does it render more than the gate's limit: the cloth gets no more either (third law).
   sc_.finger.max_force = gate_->max_force();
-  const Rendering mode = rendering(sc_.local_patch, sc_.local_model);
+  const Rendering mode = sc_.rendering;
+  const int fingers = dev_.info().fingers;
+  const PatchParams patch = patch_params(sc_.patch, model, sc_.finger, sc_.coupling, sc_.haptic_rate);
   // The patch model's candidates: room for 4x the triangles a patch takes.
   const int candidates = mode == Rendering::Patch ? 4 * std::max(1, sc_.patch.max_triangles) : 0;
   snap_ = std::make_unique<TripleBuffer<ClothSnapshot>>(sized_snapshot(model.num_vertices(), candidates));
   rep_ = std::make_unique<TripleBuffer<HapticReport>>(HapticReport{});
-  sim_ = std::make_unique<SimWorker>(model, cfg, std::move(solver), start, dev_.info().fingers,
-                                     sc_.finger, sc_.coupling, mode, *snap_, *rep_);
-  loop_ = std::make_unique<HapticLoop>(model.triangles, model.num_vertices(), dev_, *gate_, sc_.finger,
-                                       sc_.mapping, *snap_, *rep_);
-  if (mode == Rendering::Response) loop_->enable_response();
-  if (mode == Rendering::Patch) {
-    PatchParams p = sc_.patch;
-    p.areal_density = model.material.areal_density;
-    p.stiffness = 0.5 * (model.material.weft.B[0][1] + model.material.warp.B[0][1]);
-    p.contact_stiffness = sc_.finger.stiffness;
-    p.haptic_period = 1.0 / sc_.haptic_rate;
-    // The patch reaches the force-spreading kernel's radius (2 mean edges), at least 2 fingertip
-    // radii: enough triangles to hold the dent, few enough to step 32 times a millisecond.
-    if (!(sc_.patch.radius > 0.0)) p.radius = std::max(2.0 * sc_.finger.radius, sim_->kernel_radius());
-    sim_->set_patch_radius(p.radius);
-    loop_->enable_local_patch(model.rest_positions, model.pinned, p);
-  }
+  sim_ = std::make_unique<SimWorker>(model, cfg, std::move(solver), start, fingers, sc_.finger, sc_.coupling,
+                                     mode, patch, *snap_, *rep_);
+  loop_ = std::make_unique<HapticLoop>(dev_, *gate_, sc_.finger, sc_.mapping,
+                                       make_surface_contact(mode, model, fingers, sc_.finger, patch), mode,
+                                       *snap_, *rep_);
 }
 
 Session::~Session() { dev_.deactivate(); }

@@ -27,13 +27,11 @@ struct SessionConfig {
   DeviceMapping mapping;
   devices::GateConfig gate;
   bool try_realtime = true;     ///< SCHED_FIFO + mlockall for the haptic thread if permitted
-  /// The multirate path (4.2): the haptic loop renders from a local model between global steps
-  /// longer than its period. The server turns it on when the global step does not fit in the
-  /// haptic period (the scene's local_patch).
-  bool local_patch = false;
-  /// The local model of the multirate path (local_patch true).
-  LocalModel local_model = LocalModel::Response;
-  PatchParams patch;            ///< stiffness and density are taken from the material
+  /// How the simulation and the haptic loop share the fingertips (rendering.hpp). The server
+  /// takes the multirate path when the global step does not fit in the haptic period (the
+  /// scene's haptics.rendering).
+  Rendering rendering = Rendering::Direct;
+  PatchParams patch;            ///< the patch model's; stiffness and density are taken from the material
   double spin_lead = 150e-6;    ///< s: the haptic thread sleeps to this before each deadline, then spins
   /// Real time: tick on the device's samples (devices::DeviceClock) instead of the loop's own
   /// deadlines. The device must stream on its own clock (paces_loop: udp).

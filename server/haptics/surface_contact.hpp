@@ -1,30 +1,15 @@
-// How a fingertip touches the cloth on the haptic thread: one interface, one implementation per
-// surface model (ProxyContact: the proxies solved with the global cloth, direct coupling;
-// PatchContact: the local refinement of section 4.2).
+// How a fingertip touches the cloth on the haptic thread: the haptic half of a rendering mode
+// (rendering.hpp), one implementation per mode (ProxyContact: direct coupling, the proxies
+// solved with the global cloth; ResponseContact: the multirate path's response model;
+// PatchContact: its patch model, section 4.2).
 #pragma once
 
 #include <array>
 
 #include "haptics/handoff.hpp"
+#include "haptics/rendering.hpp"
 
 namespace hapticloth::haptics {
-
-/// The local model of the multirate path (section 4.2: the global step is longer than the
-/// haptic period). Response: the fingertip proxies are solved with the whole cloth at the
-/// global step, which also hands over its linear response to the fingertips
-/// (cloth::Integrator::proxy_response); the haptic loop renders from it between steps, both
-/// fingers together. Patch: the paper's refined spring-mass patch per fingertip (4.2), with
-/// the forces spread back on the global cloth by a kernel (4.3).
-enum class LocalModel { Response, Patch };
-inline const char* to_string(LocalModel m) { return m == LocalModel::Response ? "response" : "patch"; }
-
-/// How the simulation and the haptic loop share the fingertips: Direct (the proxies solved with
-/// the cloth at every haptic tick's step), or the multirate path with one of its local models.
-enum class Rendering { Direct, Response, Patch };
-inline Rendering rendering(bool local_patch, LocalModel m) {
-  if (!local_patch) return Rendering::Direct;
-  return m == LocalModel::Response ? Rendering::Response : Rendering::Patch;
-}
 
 /// The fingertip of one finger for one tick, in the scene frame.
 struct Fingertip {
@@ -62,6 +47,10 @@ class SurfaceContact {
   /// The finger left (no fresh device sample): forget its contact state, so that it starts
   /// afresh where the device puts it when it comes back.
   virtual void release(int finger) noexcept { (void)finger; }
+  /// The patch model's builds, and those whose springs were softened to stay stable (0 for the
+  /// other modes).
+  virtual std::uint64_t patch_rebuilds() const { return 0; }
+  virtual std::uint64_t patch_softened() const { return 0; }
 };
 
 }  // namespace hapticloth::haptics

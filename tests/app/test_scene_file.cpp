@@ -93,7 +93,7 @@ static void expect_main_job_session(const hapticloth::app::Scene& big,
   EXPECT_DOUBLE_EQ(big.haptics.finger.stiffness, main.haptics.finger.stiffness);
   EXPECT_DOUBLE_EQ(big.haptics.finger.friction, main.haptics.finger.friction);
   EXPECT_DOUBLE_EQ(big.preroll, main.preroll);
-  EXPECT_EQ(big.local_patch, "auto");
+  EXPECT_EQ(big.rendering, "auto");
 }
 
 // The finer sessions: the scene's file and name, its mesh, and its assembly threads.
@@ -135,21 +135,29 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
   const std::string missing_material = (dir_ / "missing.toml").string();
   // Direct coupling solves the fingertip spheres with the cloth: the local patch's kernel keys
   // are rejected there, with what replaced them.
-  const std::string direct = kScene + "\n[haptics]\nlocal_patch = \"off\"\n";
+  const std::string direct = kScene + "\n[haptics]\nrendering = \"direct\"\n";
   const std::vector<BadFile> cases = {
       {"UnknownTopLevelKey", with_line(kScene, 3, "gravity = [0.0, 0.0, -9.81]"), 3,
        {"key 'gravity'", "unknown key", "physics"}},
       {"KernelKeyWithDirectCoupling", direct + "kernel_radius = 0.02\n", 19,
-       {"haptics.kernel_radius", "local_patch = \"on\"", "contact_stiffness"}},
+       {"haptics.kernel_radius", "rendering = \"multirate\"", "contact_stiffness"}},
       {"NegativeContactStiffness", direct + "contact_stiffness = -1\n", 19,
        {"haptics.contact_stiffness", "must be > 0"}},
-      {"KernelKeyWithTheResponseModel", kScene + "\n[haptics]\nlocal_patch = \"on\"\nkernel_radius = 0.02\n", 19,
-       {"haptics.kernel_radius", "local_model = \"patch\""}},
-      {"UnknownLocalModel", kScene + "\n[haptics]\nlocal_model = \"springs\"\n", 18,
+      {"KernelKeyWithTheResponseModel", kScene + "\n[haptics]\nrendering = \"multirate\"\nkernel_radius = 0.02\n", 19,
+       {"haptics.kernel_radius", "multirate_model = \"patch\""}},
+      {"UnknownMultirateModel", kScene + "\n[haptics]\nmultirate_model = \"springs\"\n", 18,
+       {"haptics.multirate_model", "\"response\" or \"patch\""}},
+      {"UnknownOldLocalModel", kScene + "\n[haptics]\nlocal_model = \"springs\"\n", 18,
        {"haptics.local_model", "\"response\" or \"patch\""}},
+      {"UnknownRendering", kScene + "\n[haptics]\nrendering = \"on\"\n", 18,
+       {"haptics.rendering", "\"auto\", \"direct\" or \"multirate\""}},
+      {"UnknownOldLocalPatch", kScene + "\n[haptics]\nlocal_patch = \"multirate\"\n", 18,
+       {"haptics.local_patch", "\"auto\", \"on\" or \"off\"", "rendering"}},
+      {"OldAndNewRenderingKeys", kScene + "\n[haptics]\nrendering = \"direct\"\nlocal_patch = \"off\"\n", 19,
+       {"haptics.local_patch", "old name of haptics.rendering"}},
       {"UnknownRefine", kScene + "\n[haptics]\nrefine = \"maybe\"\n", 18, {"haptics.refine", "\"auto\", \"on\" or \"off\""}},
       {"RefineWithThePatchModel",
-       kScene + "\n[haptics]\nlocal_patch = \"on\"\nlocal_model = \"patch\"\nrefine = \"on\"\n", 20,
+       kScene + "\n[haptics]\nrendering = \"multirate\"\nmultirate_model = \"patch\"\nrefine = \"on\"\n", 20,
        {"haptics.refine", "the patch model"}},
       {"UnknownDeviceDriver", kScene + "\n[device]\ndriver = \"phantom\"\n", 18,
        {"key 'device.driver'", "unknown driver 'phantom'", "mock"}},
@@ -174,13 +182,38 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
   };
   const auto path = (dir_ / "scene.toml").string();
   for (const BadFile& c : cases) expect_bad_file(c, path, [&] { scene(c.text); });
-  EXPECT_NO_THROW(scene(kScene + "\n[haptics]\nlocal_patch = \"on\"\nlocal_model = \"patch\"\nkernel_radius = 0.02\n"));
+  EXPECT_NO_THROW(scene(kScene + "\n[haptics]\nrendering = \"multirate\"\nmultirate_model = \"patch\"\nkernel_radius = 0.02\n"));
   using hapticloth::haptics::Refine;
   EXPECT_EQ(scene(kScene).haptics.coupling.refine, Refine::Auto);
   EXPECT_EQ(scene(kScene + "\n[haptics]\nrefine = \"on\"\n").haptics.coupling.refine, Refine::On);
   EXPECT_EQ(scene(kScene + "\n[haptics]\nrefine = \"off\"\n").haptics.coupling.refine, Refine::Off);
-  EXPECT_EQ(scene(kScene + "\n[haptics]\nlocal_patch = \"on\"\nrefine = \"on\"\n").haptics.coupling.refine,
+  EXPECT_EQ(scene(kScene + "\n[haptics]\nrendering = \"multirate\"\nrefine = \"on\"\n").haptics.coupling.refine,
             Refine::On);
+}
+
+// haptics.rendering and haptics.multirate_model; their old names local_patch ("on", "off",
+// "auto") and local_model still work, each with a note that names the new key.
+TEST_F(SceneFileTest, RenderingKeysAndTheirOldNames) {
+  using hapticloth::haptics::LocalModel;
+  const auto plain = scene(kScene);
+  EXPECT_EQ(plain.rendering, "auto");
+  EXPECT_EQ(plain.multirate_model, LocalModel::Response);
+  EXPECT_TRUE(plain.notes.empty());
+  const auto now = scene(kScene + "\n[haptics]\nrendering = \"multirate\"\nmultirate_model = \"patch\"\n");
+  EXPECT_EQ(now.rendering, "multirate");
+  EXPECT_EQ(now.multirate_model, LocalModel::Patch);
+  EXPECT_TRUE(now.notes.empty());
+  for (const auto& [old, read] : {std::pair<const char*, const char*>{"on", "multirate"}, {"off", "direct"}, {"auto", "auto"}}) {
+    const auto was = scene(kScene + "\n[haptics]\nlocal_patch = \"" + old + "\"\nlocal_model = \"patch\"\n");
+    EXPECT_EQ(was.rendering, read) << old;
+    EXPECT_EQ(was.multirate_model, LocalModel::Patch);
+    ASSERT_EQ(was.notes.size(), 2u);
+    EXPECT_NE(was.notes[0].find("scene.toml:18: haptics.local_patch is now haptics.rendering"), std::string::npos)
+        << was.notes[0];
+    EXPECT_NE(was.notes[0].find(std::string("rendering = \"") + read + "\""), std::string::npos) << was.notes[0];
+    EXPECT_NE(was.notes[1].find("scene.toml:19: haptics.local_model is now haptics.multirate_model"), std::string::npos)
+        << was.notes[1];
+  }
 }
 
 TEST_F(SceneFileTest, PcgPreconditionerKey) {

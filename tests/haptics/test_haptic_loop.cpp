@@ -15,10 +15,9 @@ class TickAllocation : public ::testing::TestWithParam<haptics::Rendering> {};
 TEST_P(TickAllocation, TickAllocatesNothing) {
   const double r = 0.008;
   haptics::SessionConfig sc;
-  sc.local_patch = GetParam() != haptics::Rendering::Direct;
-  sc.local_model = GetParam() == haptics::Rendering::Patch ? haptics::LocalModel::Patch
-                                                           : haptics::LocalModel::Response;
-  cloth::IntegratorConfig ic = test::sim_config(sc.local_patch ? 0.02 : 1e-3);
+  sc.rendering = GetParam();
+  const bool multirate = haptics::multirate(sc.rendering);
+  cloth::IntegratorConfig ic = test::sim_config(multirate ? 0.02 : 1e-3);
   // Pressing from the first tick (the script restarts when the device is reactivated).
   test::DrumRig rig(test::drum(), test::one_finger({{0.0, Vec3(0.003, 0.002, r - 0.003)}, {1.0, Vec3(0.013, 0.002, r - 0.003)}}), sc, ic);
   auto& s = *rig.session;
@@ -29,7 +28,7 @@ TEST_P(TickAllocation, TickAllocatesNothing) {
   rig.dev.activate();
   auto& h = s.haptics();
   for (int k = 0; k < 500; ++k) {
-    if (sc.local_patch && k % 20 == 0) s.sim().step(1.0 + 0.001 * k);
+    if (multirate && k % 20 == 0) s.sim().step(1.0 + 0.001 * k);
     test::AllocationGuard guard;
     h.tick(1.0 + 0.001 * k);
     allocs += guard.count();

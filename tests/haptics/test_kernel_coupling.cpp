@@ -2,6 +2,7 @@
 // contact onset.
 #include <gtest/gtest.h>
 
+#include "cloth/integrator.hpp"
 #include "cloth/model.hpp"
 #include "haptics/kernel_coupling.hpp"
 #include "support/fixtures.hpp"
@@ -22,9 +23,8 @@ cloth::ClothState start_state(const cloth::ClothModel& m) {
 // the normal momentum conserved exactly, and a heavy fingertip drags the cloth to its speed.
 TEST(KernelCoupling, ImpactTransfersMomentum) {
   const cloth::ClothModel m = drum();
-  std::vector<std::array<int, 3>> tris;
-  for (const auto& e : m.elements) tris.push_back({e.v[0], e.v[1], e.v[2]});
-  haptics::KernelCoupling kernel(m, tris, 2, 2.0 * 0.3 / 20, 0.05);
+  cloth::Integrator integ(m, cloth::IntegratorConfig{}, cloth::make_cholmod_solver());
+  haptics::KernelCoupling kernel(m, integ, 2, 2.0 * 0.3 / 20, 0.05, 0.016, 0.01);
   cloth::ClothState s = start_state(m);
   haptics::FingerReport c;
   c.in_contact = true;

@@ -250,8 +250,7 @@ TEST(Haptics, MultirateKeepsForceContinuousAt25Hz) {
   };
   auto run = [&](bool multirate, haptics::LocalModel model) {
     haptics::SessionConfig sc;
-    sc.local_patch = multirate;
-    sc.local_model = model;
+    sc.rendering = haptics::rendering(multirate, model);
     cloth::IntegratorConfig ic = sim_config(0.04);  // 25 Hz global simulation
     Rig rig(drum(), one_finger({{0.0, Vec3(-0.03, 0.002, 0.03)},
                                 {0.3, Vec3(-0.03, 0.002, r - 0.004)},

@@ -94,8 +94,7 @@ struct DrumSpec {
 inline void set_global_step(haptics::SessionConfig& sc, cloth::IntegratorConfig& ic, double dt,
                             haptics::LocalModel m) {
   ic.dt = dt;
-  sc.local_patch = dt * sc.haptic_rate > 1.0 + 1e-9;
-  sc.local_model = m;
+  sc.rendering = haptics::rendering(dt * sc.haptic_rate > 1.0 + 1e-9, m);
 }
 
 struct DrumPoint {

@@ -318,11 +318,11 @@ json accuracy(const AccuracyOptions& opt) {
     for (double dt : dts) {
       if (dt <= 1e-3) continue;
       RunConfig c = defaults;
-      c.dt = dt, c.local_patch = true, c.sweep = "local-response";
+      c.dt = dt, c.multirate = true, c.sweep = "local-response";
       cfgs.push_back(c);
       c.local_model = haptics::LocalModel::Patch, c.sweep = "local-patch";
       cfgs.push_back(c);
-      c.local_patch = false, c.sweep = "direct-long-step";
+      c.multirate = false, c.sweep = "direct-long-step";
       cfgs.push_back(c);
     }
     if (!quick)

@@ -45,7 +45,7 @@ struct RunConfig {
   bool float_matrix = true;
   int max_iterations = 300;
   int resolution = 22;      ///< quads per side of the 0.5 m square
-  bool local_patch = false;  ///< the multirate path, with `local_model`
+  bool multirate = false;   ///< the multirate path, with `local_model`
   haptics::LocalModel local_model = haptics::LocalModel::Response;
   double stiffness_scale = 1.0;
   std::string sweep;        ///< which sweep the run belongs to
@@ -80,7 +80,7 @@ inline std::string describe(const RunConfig& c) {
   std::string s = "dt " + fmt(c.dt * 1e3) + " ms, alpha " + fmt(c.alpha) + ", " + c.solver;
   if (c.solver == "pcg") s += " tol " + fmt(c.tolerance) + (c.float_matrix ? " float" : " double");
   if (c.resolution != 22) s += ", " + std::to_string(2 * c.resolution * c.resolution) + " triangles";
-  if (c.local_patch) s += std::string(", multirate (") + haptics::to_string(c.local_model) + ")";
+  if (c.multirate) s += std::string(", multirate (") + haptics::to_string(c.local_model) + ")";
   if (c.stiffness_scale != 1.0) s += ", stiffness x" + fmt(c.stiffness_scale);
   return s;
 }
@@ -93,7 +93,7 @@ inline nlohmann::json config_json(const RunConfig& c) {
     j["pcg_tolerance"] = c.tolerance;
     j["pcg_float_matrix"] = c.float_matrix;
   }
-  if (c.local_patch) j["local_model"] = haptics::to_string(c.local_model);
+  if (c.multirate) j["local_model"] = haptics::to_string(c.local_model);
   if (c.stiffness_scale != 1.0) j["stiffness_scale"] = c.stiffness_scale;
   return j;
 }
@@ -159,8 +159,7 @@ struct MockRig {
     haptics::SessionConfig hc = sc.haptics;
     hc.try_realtime = false;
     hc.haptic_rate = haptic_rate;
-    hc.local_patch = c.local_patch;
-    hc.local_model = c.local_model;
+    hc.rendering = haptics::rendering(c.multirate, c.local_model);
     hc.mapping.origin = device_origin;
     cloth::IntegratorConfig ic = sc.integrator;
     ic.dt = c.dt;

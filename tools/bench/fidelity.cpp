@@ -170,7 +170,7 @@ PinchSite middle_of_cloth(const cloth::ClothModel& model, const cloth::ClothStat
 json pinch_step(const app::Scene& scene, double seconds, double settle_s) {
   const cloth::ClothModel model = app::build_model(scene);
   haptics::SessionConfig sc = scene.haptics;
-  sc.local_patch = false;
+  sc.rendering = haptics::Rendering::Direct;
   sc.mapping = haptics::DeviceMapping{};
   sc.try_realtime = false;
   cloth::IntegratorConfig ic = scene.integrator;

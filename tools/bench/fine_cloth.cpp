@@ -104,7 +104,7 @@ json fine_cloth(const AccuracyOptions& opt) {
     for (auto model : {haptics::LocalModel::Response, haptics::LocalModel::Patch}) {
       RunConfig c = direct;
       c.dt = dt;
-      c.local_patch = true;
+      c.multirate = true;
       c.local_model = model;
       say(describe(c));
       row(std::string("multirate ") + haptics::to_string(model), c, run(fine, m, start, script, c));

@@ -74,7 +74,7 @@ Outcome run(const app::Scene& sc, const cloth::ClothModel& m, const cloth::Cloth
         // every step whether or not it touches (a finger through the cloth touches nothing).
         // The multirate path renders its proxy between steps; it is checked while in contact.
         for (int f = 0; f < h.fingers(); ++f)
-          if (rep.finger[f].in_contact || !c.local_patch) {
+          if (rep.finger[f].in_contact || !c.multirate) {
             const double pen = r - distance_to_cloth(rep.finger[f].proxy, s.x, m);
             o.max_penetration = std::max(o.max_penetration, pen);
             ++o.contact_checks;
@@ -185,7 +185,7 @@ json stability(const StabilityOptions& opt) {
           c.dt = dt, c.alpha = a, c.stiffness_scale = k, c.sweep = "map";
           // The coupling the server runs at this step: direct at the haptic rate, the local
           // patch (4.2) beyond it.
-          c.local_patch = dt * sc.haptics.haptic_rate > 1.0 + 1e-9;
+          c.multirate = dt * sc.haptics.haptic_rate > 1.0 + 1e-9;
           say(describe(c) + ", finger " + fmt(v) + " m/s");
           const Outcome o = run(sc, m, start, script, c, script.duration(), pen_tol);
           json j = config_json(c);
