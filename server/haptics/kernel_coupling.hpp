@@ -24,7 +24,7 @@ class KernelCoupling final : public SimCoupling {
   KernelCoupling(const cloth::ClothModel& model, cloth::Integrator& integ, int fingers,
                  double radius, double finger_mass, double patch_radius, double margin);
 
-  void couple(const HapticReport& r, double now, cloth::ClothState& s) override { apply(r, s, integ_); }
+  void couple(const HapticReport& r, double, cloth::ClothState& s) override { apply(r, s, integ_); }
   void conclude(const cloth::ClothState&) override {}
   void fill(const HapticReport& r, const cloth::ClothState& s, ClothSnapshot& snap) override;
   std::uint64_t patch_candidate_overflows() const override { return overflows_; }
