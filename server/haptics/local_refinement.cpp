@@ -56,24 +56,35 @@ std::optional<ClothPoint> LocalRefinement::touched_point(const ProxyResult& r) c
   return at;
 }
 
-void LocalRefinement::build_child(int f, const ClothPoint& at, const cloth::ClothState& s) {
+void RefinementInput::take(const cloth::ClothState& s, const FingertipContact& contact, int n) {
+  x.resize(s.x.size());
+  std::copy(s.x.begin(), s.x.end(), x.begin());
+  fingers = n;
+  for (int f = 0; f < n; ++f) {
+    result[f] = contact.result(f);
+    proxy[f] = contact.global_proxy(f);
+  }
+}
+
+void LocalRefinement::build_child(int f, const ClothPoint& at, const std::vector<Vec3>& x) {
   RefineSpec spec = spec_;
   spec.reach = std::max(kReachEdges * refiner_.longest_edge(at.tri), 2.0 * cp_.radius);
   child_[f] = std::make_unique<RefinedContact>(refiner_.refine(at, spec), g_.material, gravity_,
                                                child_law(cp_));
-  child_[f]->follow(s.x);
+  child_[f]->follow(x);
   anchor_[f] = refiner_.rest_point(at);
   ++builds_;
 }
 
-void LocalRefinement::update(const cloth::ClothState& s, FingertipContact& contact, int fingers) {
+void LocalRefinement::update(const RefinementInput& step) {
+  const int fingers = step.fingers;
   std::array<ChildFinger, kMaxFingers> in{};
   std::array<std::optional<ClothPoint>, kMaxFingers> at{};
   for (int f = 0; f < fingers; ++f) {
-    const ProxyResult& r = contact.result(f);
+    const ProxyResult& r = step.result[f];
     at[f] = touched_point(r);
     in[f].in = at[f].has_value() && r.force.dot(r.normal) > 0.0;
-    in[f].centre = contact.global_proxy(f);
+    in[f].centre = step.proxy[f];
     in[f].normal = r.normal;
     in[f].force = r.force.dot(r.normal);
   }
@@ -81,14 +92,13 @@ void LocalRefinement::update(const cloth::ClothState& s, FingertipContact& conta
     if (!in[f].in) {
       child_[f].reset();
       compliance_[f] = 0.0;
-      contact.set_refined_compliance(f, 0.0);
       continue;
     }
     const Vec3 here = refiner_.rest_point(*at[f]);
     const double reach = std::max(kReachEdges * refiner_.longest_edge(at[f]->tri), 2.0 * cp_.radius);
     const bool fresh = !child_[f] || (here - anchor_[f]).norm() > kRecentre * reach;
-    if (fresh) build_child(f, *at[f], s);
-    else child_[f]->follow(s.x);
+    if (fresh) build_child(f, *at[f], step.x);
+    else child_[f]->follow(step.x);
     // The other fingertips touching this child's cloth push on it too (a pinch).
     std::array<ChildFinger, kMaxFingers> mine{};
     const auto& region = child_[f]->mesh().region;
@@ -96,7 +106,6 @@ void LocalRefinement::update(const cloth::ClothState& s, FingertipContact& conta
       if (in[g].in && std::binary_search(region.begin(), region.end(), at[g]->tri)) mine[g] = in[g];
     child_[f]->settle(mine, fresh ? 4 * p_.iterations : p_.iterations);
     compliance_[f] = std::max(0.0, child_[f]->extra_depth(f)) / in[f].force;
-    contact.set_refined_compliance(f, compliance_[f]);
   }
 }
 

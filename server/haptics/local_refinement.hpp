@@ -52,14 +52,25 @@ double longest_rest_edge(const cloth::ClothModel& m);
 /// for the simulation (a LocalRefinement is made) and the stage line.
 bool mesh_needs_refinement(const cloth::ClothModel& m, const RefinementParams& p, double radius);
 
+/// What a refinement update takes from a global step: the cloth's positions, and per finger the
+/// step's proxy result and its proxy in the global cloth (FingertipContact::global_proxy).
+struct RefinementInput {
+  std::vector<Vec3> x;
+  std::array<ProxyResult, kMaxFingers> result{};
+  std::array<Vec3, kMaxFingers> proxy{};
+  int fingers = 0;
+  /// From the step's contact; `x` keeps its size (no allocation after the first).
+  void take(const cloth::ClothState& s, const FingertipContact& contact, int fingers);
+};
+
 class LocalRefinement {
  public:
   LocalRefinement(const cloth::ClothModel& global, const ContactParams& contact,
                   const Vec3& gravity, const RefinementParams& p);
 
-  /// After a global step: the children follow the cloth `s` and carry the forces of
-  /// `contact`'s fingertips; the compliances they give are set on `contact` for the next step.
-  void update(const cloth::ClothState& s, FingertipContact& contact, int fingers);
+  /// After a global step: the children follow the cloth and carry the forces of the step's
+  /// fingertips; compliance(f) is then what the next step puts in series with finger f.
+  void update(const RefinementInput& in);
 
   /// Finger f's child, if it has one now.
   const RefinedContact* child(int f) const { return child_[f].get(); }
@@ -70,7 +81,7 @@ class LocalRefinement {
 
  private:
   std::optional<ClothPoint> touched_point(const ProxyResult& r) const;
-  void build_child(int f, const ClothPoint& at, const cloth::ClothState& s);
+  void build_child(int f, const ClothPoint& at, const std::vector<Vec3>& x);
 
   const cloth::ClothModel& g_;
   ContactParams cp_;

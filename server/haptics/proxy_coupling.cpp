@@ -22,10 +22,22 @@ ProxyCoupling::ProxyCoupling(const cloth::ClothModel& model, cloth::Integrator& 
                              const FingerParams& finger, const CouplingParams& coupling, bool refine)
     : integ_(integ),
       fingers_(fingers),
+      model_(model),
+      finger_(finger),
+      coupling_(coupling),
       tips_(model, model.triangles, fingers, contact_params(finger, coupling.margin), integ) {
   if (refine && mesh_needs_refinement(model, coupling.refinement, finger.radius))
-    refine_ = std::make_unique<LocalRefinement>(model, contact_params(finger, coupling.margin),
-                                                integ.config().gravity, coupling.refinement);
+    refine_ = std::make_unique<InlineRefinement>(make_refinement());
+}
+
+std::unique_ptr<LocalRefinement> ProxyCoupling::make_refinement() const {
+  return std::make_unique<LocalRefinement>(model_, contact_params(finger_, coupling_.margin),
+                                           integ_.config().gravity, coupling_.refinement);
+}
+
+// A fresh refinement on the worker (its children are built again at the next touch).
+void ProxyCoupling::refine_beside_steps() {
+  if (refine_) refine_ = std::make_unique<BackgroundRefinement>(make_refinement());
 }
 
 // The device's fingertips at the end of the coming step: the latest tick's positions carried
@@ -48,7 +60,7 @@ void ProxyCoupling::couple(const HapticReport& r, double now, cloth::ClothState&
 
 void ProxyCoupling::conclude(const cloth::ClothState& s) {
   tips_.end_step(s);
-  if (refine_) refine_->update(s, tips_, fingers_);
+  if (refine_) refine_->after_step(s, tips_, fingers_);
 }
 
 void ProxyCoupling::fill(const HapticReport&, const cloth::ClothState&, ClothSnapshot& snap) {

@@ -13,6 +13,7 @@
 #include "haptics/fingertip_contact.hpp"
 #include "haptics/local_refinement.hpp"
 #include "haptics/params.hpp"
+#include "haptics/refinement_schedule.hpp"
 #include "haptics/sim_coupling.hpp"
 
 namespace hapticloth::haptics {
@@ -27,7 +28,8 @@ class ProxyCoupling : public SimCoupling {
   void conclude(const cloth::ClothState& s) override;
   void fill(const HapticReport& r, const cloth::ClothState& s, ClothSnapshot& snap) override;
   const FingertipContact* fingertips() const override { return &tips_; }
-  const LocalRefinement* refinement() const override { return refine_.get(); }
+  const RefinementSchedule* refinement() const override { return refine_.get(); }
+  void refine_beside_steps() override;
 
  protected:
   cloth::Integrator& integ_;
@@ -36,8 +38,13 @@ class ProxyCoupling : public SimCoupling {
  private:
   std::array<FingerTarget, kMaxFingers> targets(const HapticReport& r, double now) const;
 
+  std::unique_ptr<LocalRefinement> make_refinement() const;
+
+  const cloth::ClothModel& model_;
+  FingerParams finger_;
+  CouplingParams coupling_;
   FingertipContact tips_;
-  std::unique_ptr<LocalRefinement> refine_;
+  std::unique_ptr<RefinementSchedule> refine_;
 };
 
 class ResponseCoupling final : public ProxyCoupling {

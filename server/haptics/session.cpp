@@ -20,6 +20,7 @@
 #include "hal/device_clock.hpp"
 #include "hal/mono_clock.hpp"
 #include "hal/platform_timer.hpp"
+#include "haptics/refinement_schedule.hpp"
 #include "haptics/rendering_modes.hpp"
 
 namespace hapticloth::haptics {
@@ -97,6 +98,8 @@ void Session::run_realtime(double seconds) {
   std::string note;
   const double period = 1.0 / sc_.haptic_rate;
   const double t_start = mono_now() + 0.01;
+  // In real time the refinement's settles run beside the steps (refinement_schedule.hpp).
+  sim_->refine_beside_steps();
   // The haptic loop reports the fingertips, then the simulation publishes once, before the
   // loops start.
   loop_->prime(0.0);
@@ -238,6 +241,11 @@ SessionReport Session::report() const {
   r.late_ticks = loop_->late_ticks();
   r.passivity_ticks = loop_->passivity().stats().active_ticks;
   r.passivity_deficit = loop_->passivity().stats().deepest_deficit_j;
+  if (const RefinementSchedule* rs = sim_->refinement()) {
+    r.refinement_builds = rs->builds();
+    r.refinement_updates = rs->updates();
+    r.refinement_beside_steps = rs->beside_steps();
+  }
   if (const EnergyBound* b = loop_->energy_bound()) {
     r.energy_bound_ticks = b->stats().limited_ticks;
     r.energy_withheld = b->stats().withheld_j;
@@ -291,6 +299,9 @@ std::string SessionReport::to_text() const {
   os << "late ticks       " << late_ticks << " (their motion caught up over the ticks missed); "
      << "passivity control on " << passivity_ticks << " ticks, coupling's largest deficit "
      << std::setprecision(2) << passivity_deficit * 1e6 << " uJ\n" << std::setprecision(1);
+  if (refinement_updates > 0)
+    os << "local refinement " << refinement_builds << " children built, " << refinement_updates << " updates "
+       << (refinement_beside_steps ? "beside the steps (worker thread)" : "within the steps") << "\n";
   if (energy_bound_ticks > 0)
     os << "energy bound     the multirate model's force scaled back on " << energy_bound_ticks
        << " ticks, " << std::setprecision(2) << energy_withheld * 1e6
@@ -336,6 +347,9 @@ std::string SessionReport::to_json() const {
   j["passivity_deficit_j"] = passivity_deficit;
   j["energy_bound_ticks"] = energy_bound_ticks;
   j["energy_withheld_j"] = energy_withheld;
+  j["refinement_builds"] = refinement_builds;
+  j["refinement_updates"] = refinement_updates;
+  j["refinement_beside_steps"] = refinement_beside_steps;
   j["realtime_scheduling"] = realtime_scheduling;
   j["memory_locked"] = memory_locked;
   return j.dump();

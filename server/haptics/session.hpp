@@ -64,6 +64,10 @@ struct SessionReport {
   /// and the work on the hand it withheld, J.
   std::uint64_t energy_bound_ticks = 0;
   double energy_withheld = 0.0;
+  /// Local refinement (LocalRefinement): children built, and updates (settles of every touching
+  /// child) done, within the steps or beside them (refinement_schedule.hpp).
+  std::uint64_t refinement_builds = 0, refinement_updates = 0;
+  bool refinement_beside_steps = false;
   double max_force = 0.0;          ///< N, largest force sent to a finger
   double sim_time = 0.0;           ///< s of session: the haptic ticks run times the haptic period
   /// s the cloth advanced in the session (its steps times their dt). Below sim_time when the

@@ -10,7 +10,7 @@
 namespace hapticloth::haptics {
 
 class FingertipContact;
-class LocalRefinement;
+class RefinementSchedule;
 
 class SimCoupling {
  public:
@@ -28,7 +28,10 @@ class SimCoupling {
   /// The proxies' contact (nullptr when the mode solves no proxies).
   virtual const FingertipContact* fingertips() const { return nullptr; }
   /// The local refinement (nullptr when off, or not part of the mode).
-  virtual const LocalRefinement* refinement() const { return nullptr; }
+  virtual const RefinementSchedule* refinement() const { return nullptr; }
+  /// From now on, settle the local refinement beside the steps rather than within them (a
+  /// real-time session: RefinementSchedule).
+  virtual void refine_beside_steps() {}
   /// Snapshots in which a finger had more patch candidates than their room (patch model).
   virtual std::uint64_t patch_candidate_overflows() const { return 0; }
 };

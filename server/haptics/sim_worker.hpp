@@ -41,7 +41,9 @@ class SimWorker {
   const FingertipContact* fingertips() const { return coupling_->fingertips(); }
   /// The local refinement (nullptr when off, with the patch model, or when the global mesh
   /// resolves the contact patch).
-  const LocalRefinement* refinement() const { return coupling_->refinement(); }
+  const RefinementSchedule* refinement() const { return coupling_->refinement(); }
+  /// From now on, settle the local refinement beside the steps (a real-time session).
+  void refine_beside_steps() { coupling_->refine_beside_steps(); }
   /// Snapshots in which a finger had more patch candidates than their room (the patch was
   /// built from the first ones, in index order).
   std::uint64_t patch_candidate_overflows() const { return coupling_->patch_candidate_overflows(); }

@@ -84,6 +84,9 @@ struct DrumSpec {
   double hold = 0.0;             ///< s the device then stays there
   double max_force = 0.0;        ///< N, the safety gate's limit (0: the device's, 20 N)
   std::string solver = "pcg";
+  /// In real time (Session::run_realtime, the refinement beside the steps): only the final
+  /// depth and force are read.
+  bool realtime = false;
   /// s; longer than the haptic period: the multirate path with `model`
   double global_dt = 1e-3;
   haptics::LocalModel model = haptics::LocalModel::Response;
@@ -156,6 +159,14 @@ inline DrumResult press_drum(const DrumSpec& spec) {
   res.triangles = rig.model.num_triangles();
   std::vector<std::pair<double, double>> curve;  // (depth, force)
   bool touched = false;
+  if (spec.realtime) {
+    rig.session->run_realtime(t_end + spec.hold);
+    const auto& f = rig.session->haptics().last_report().finger[0];
+    res.final_depth = -(f.proxy.z() - r);
+    res.final_force = f.force.z();
+    res.report = rig.session->report();
+    return res;
+  }
   rig.session->run_stepped(t_end + spec.hold, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
     const auto& f = h.last_report().finger[0];
     const double depth = -(f.proxy.z() - r);
