@@ -68,7 +68,8 @@ class FingertipContact final : public cloth::StepContacts {
   const ProxyResult& result(int f) const { return out_[f]; }
   /// Local refinement (LocalRefinement): the compliance c (m/N) the global mesh lacks under
   /// finger f, in series with its coupling spring from the next step on: k_eff = 1 / (1/k + c).
-  void set_refined_compliance(int f, double c) { refined_c_[f] = c; }
+  /// It is approached from the next step on at a bounded rate (approach_refined_compliance).
+  void set_refined_compliance(int f, double c) { refined_target_[f] = c; }
   /// Finger f's proxy in the global cloth, m (result().proxy is the fingertip: deeper by the
   /// refined compliance).
   const Vec3& global_proxy(int f) const { return integ_.proxies()[f].x; }
@@ -116,6 +117,7 @@ class FingertipContact final : public cloth::StepContacts {
   void linearize_pressure(Sample& q) const;
   void decide_friction(int f, Sample& q) const;
   void set_coupling_target(cloth::ProxyNode& P, const FingerTarget& device) const;
+  void approach_refined_compliance(int f);
   double normal_at_end(const Sample& q, const Vec3& rel_step) const;
   bool add_contacts(int f, const std::vector<Vec3>& x_new, const Vec3& p0, const Vec3& p1);
   bool restore_touching(int f, const std::vector<Vec3>& x_new, const Vec3& dp);
@@ -141,6 +143,7 @@ class FingertipContact final : public cloth::StepContacts {
   std::vector<Sample> merged_;  // merge_added()'s buffer
   std::array<ProxyResult, kMaxFingers> out_{};
   std::array<double, kMaxFingers> refined_c_{};  // m/N, in series with the coupling
+  std::array<double, kMaxFingers> refined_target_{};  // m/N, the refinement's latest
   std::array<Vec3, kMaxFingers> last_disp_{};
   std::array<Vec3, kMaxFingers> p0_{};  // proxies at the start of the step
   std::array<bool, kMaxFingers> seen_{}, valid_{};  // present since the last absence / this step

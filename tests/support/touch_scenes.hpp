@@ -286,6 +286,7 @@ struct PinchSpec {
   /// The fingertips are squeezed from the first tick (the cloth is inside them when the
   /// simulation first sees them), instead of closing over the first 50 ms.
   bool engaged_from_start = false;
+  haptics::Refine refine = haptics::Refine::Auto;
 };
 
 struct PinchResult {
@@ -325,6 +326,7 @@ inline PinchResult pinch_handkerchief(const PinchSpec& spec) {
   tr.add(1, closing, at - Vec3(0, 0, r - s));
   tr.add(1, spec.hold, at - Vec3(0, 0, r - s));
   haptics::SessionConfig sc = touch_session(spec.friction);
+  sc.coupling.refine = spec.refine;
   set_global_step(sc, ic, spec.global_dt, spec.model);
   TouchRig rig(std::move(model), std::move(tr), sc, ic, start, spec.solver);
   int centre = 0;
