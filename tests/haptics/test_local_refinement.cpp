@@ -153,3 +153,35 @@ TEST(RefinedContact, WholeDrumChildCarriesTheExactForceAtTheExactDepth) {
     EXPECT_LE(left, 1e-5 * f[0].force) << depth;
   }
 }
+
+// A frictionless stroke across the drum at constant device depth (3 mm), through the centre from
+// 4 cm on one side to 4 cm on the other at 20 mm/s: the normal force along the path against the
+// exact one at the proxy's depth and offset (off_centre_force). Without refinement the 12 mm
+// mesh is 41% too stiff on average; with it the mean is within the 3% the press is held to. Its
+// worst samples are not yet (a child re-centred under the moving finger: docs/contact.md).
+TEST(LocalRefinement, StrokeFollowsTheExactForceAlongThePath) {
+  struct Case {
+    double edge;
+    haptics::Refine refine;
+  };
+  for (const Case c : {Case{12e-3, haptics::Refine::Off}, Case{12e-3, haptics::Refine::On},
+                       Case{25e-3, haptics::Refine::On}}) {
+    test::StrokeSpec spec;
+    spec.drum.centre_edge = spec.drum.rim_edge = c.edge;
+    spec.drum.refine = c.refine;
+    const std::vector<test::StrokeSample> s = test::stroke_drum(spec);
+    double worst = 0.0, mean = 0.0, drag = 0.0, normal = 0.0;
+    for (const auto& p : s) {
+      worst = std::max(worst, std::abs(p.error()));
+      mean += p.error() / s.size();
+      drag += p.along;
+      normal += p.normal;
+    }
+    std::printf("edge %4.1f mm, refinement %s: normal force against the exact one: mean %+.2f%%, worst %.2f%% "
+                "over %zu samples; sideways / normal %+.4f\n", c.edge * 1e3, haptics::to_string(c.refine),
+                100 * mean, 100 * worst, s.size(), drag / normal);
+    EXPECT_GT(s.size(), 70u);
+    if (c.refine == haptics::Refine::On) EXPECT_LE(std::abs(mean), 0.03) << c.edge;
+    EXPECT_LT(std::abs(drag / normal), 0.01) << c.edge;  // frictionless: no drag beyond 1%
+  }
+}

@@ -119,7 +119,17 @@ struct DrumResult {
 
 /// The drum of the membrane reference as a graded disc, frictionless fingertip pressed slowly
 /// into its centre, no gravity. The force is read where the proxy's depth crosses 1, 2 and 3 mm.
-inline DrumResult press_drum(const DrumSpec& spec) {
+/// The drum of the membrane reference as a disc meshed as `spec` says (graded from its centre
+/// edge to its rim edge), its rim pinned where the pre-stretch puts it, no gravity, and the
+/// touch session for it (frictionless fingertip of the drum's sphere radius, the spec's
+/// refinement and global step).
+struct MembraneDisc {
+  cloth::ClothModel model;
+  cloth::ClothState start;
+  cloth::IntegratorConfig ic;
+  haptics::SessionConfig sc;
+};
+inline MembraneDisc membrane_disc(const DrumSpec& spec) {
   const MembraneDrum& d = spec.drum;
   cloth::DiscSpec ds;
   ds.radius = d.rim_radius / d.prestretch;
@@ -133,13 +143,22 @@ inline DrumResult press_drum(const DrumSpec& spec) {
   mat.warp = cloth::StrainStressCurve::linear(d.Et);
   mat.shear = cloth::StrainStressCurve::linear(spec.shear, true);
   for (auto* c : {&mat.weft, &mat.warp, &mat.shear}) c->max_strain = 1.0;
-  cloth::ClothModel model = cloth::build_model(mesh, mat, cloth::disc_rim(mesh));
-  cloth::ClothState start = cloth::rest_state(model);
-  for (auto& x : start.x) x *= d.prestretch;  // pre-stretched, rim pinned there
-  cloth::IntegratorConfig ic;
-  ic.dt = 1e-3;
-  ic.gravity = Vec3::Zero();
-  ic.air_damping = 1.0;
+  MembraneDisc m{cloth::build_model(mesh, mat, cloth::disc_rim(mesh)), {}, {}, touch_session(0.0)};
+  m.start = cloth::rest_state(m.model);
+  for (auto& x : m.start.x) x *= d.prestretch;  // pre-stretched, rim pinned there
+  m.ic.dt = 1e-3;
+  m.ic.gravity = Vec3::Zero();
+  m.ic.air_damping = 1.0;
+  m.sc.finger.radius = d.sphere_radius;
+  m.sc.gate.max_force = spec.max_force;
+  m.sc.coupling.refine = spec.refine;
+  set_global_step(m.sc, m.ic, spec.global_dt, spec.model);
+  return m;
+}
+
+inline DrumResult press_drum(const DrumSpec& spec) {
+  const MembraneDrum& d = spec.drum;
+  MembraneDisc disc = membrane_disc(spec);
   const double r = d.sphere_radius;
   const double top = r + 0.001, bottom = r - spec.device_depth;
   const double t_end = (top - bottom) / spec.speed;
@@ -149,12 +168,7 @@ inline DrumResult press_drum(const DrumSpec& spec) {
   tr.add(0, t_end, at + Vec3(0, 0, bottom));
   if (spec.hold > 0.0) tr.add(0, t_end + spec.hold, at + Vec3(0, 0, bottom));
   tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));  // parked away
-  haptics::SessionConfig sc = touch_session(0.0);
-  sc.finger.radius = r;
-  sc.gate.max_force = spec.max_force;
-  sc.coupling.refine = spec.refine;
-  set_global_step(sc, ic, spec.global_dt, spec.model);
-  TouchRig rig(std::move(model), std::move(tr), sc, ic, start, spec.solver);
+  TouchRig rig(std::move(disc.model), std::move(tr), disc.sc, disc.ic, disc.start, spec.solver);
   DrumResult res;
   res.triangles = rig.model.num_triangles();
   std::vector<std::pair<double, double>> curve;  // (depth, force)
@@ -218,25 +232,7 @@ struct CycleResult {
 /// sum F_n . (x_n+1 - x_n) (the force held over the tick that follows it).
 inline CycleResult cycle_drum(const CycleSpec& spec) {
   const MembraneDrum& d = spec.drum.drum;
-  cloth::DiscSpec ds;
-  ds.radius = d.rim_radius / d.prestretch;
-  ds.centre_edge = spec.drum.centre_edge;
-  ds.rim_edge = spec.drum.rim_edge > 0.0 ? spec.drum.rim_edge : std::max(5e-3, spec.drum.centre_edge);
-  const cloth::Mesh mesh = cloth::make_disc(ds);
-  cloth::Material mat;
-  mat.name = "linear-isotropic";
-  mat.areal_density = spec.drum.density;
-  mat.weft = cloth::StrainStressCurve::linear(d.Et);
-  mat.warp = cloth::StrainStressCurve::linear(d.Et);
-  mat.shear = cloth::StrainStressCurve::linear(spec.drum.shear, true);
-  for (auto* c : {&mat.weft, &mat.warp, &mat.shear}) c->max_strain = 1.0;
-  cloth::ClothModel model = cloth::build_model(mesh, mat, cloth::disc_rim(mesh));
-  cloth::ClothState start = cloth::rest_state(model);
-  for (auto& x : start.x) x *= d.prestretch;
-  cloth::IntegratorConfig ic;
-  ic.dt = 1e-3;
-  ic.gravity = Vec3::Zero();
-  ic.air_damping = 1.0;
+  MembraneDisc disc = membrane_disc(spec.drum);
   const double r = d.sphere_radius, top = r + spec.above, travel = spec.above + spec.depth;
   const double period = 1.0 / spec.frequency, t_end = spec.cycles * period;
   devices::Trajectory tr(2);
@@ -249,16 +245,12 @@ inline CycleResult cycle_drum(const CycleSpec& spec) {
   tr.add(0, t_end, Vec3(0, 0, top));
   tr.add(0, t_end + 0.1, Vec3(0, 0, top));
   tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));  // parked away
-  haptics::SessionConfig sc = touch_session(0.0);
-  sc.finger.radius = r;
-  sc.coupling.refine = spec.drum.refine;
-  set_global_step(sc, ic, spec.drum.global_dt, spec.drum.model);
-  TouchRig rig(std::move(model), std::move(tr), sc, ic, start, spec.drum.solver);
+  TouchRig rig(std::move(disc.model), std::move(tr), disc.sc, disc.ic, disc.start, spec.drum.solver);
   CycleResult res;
   res.work_on_user.assign(spec.cycles, 0.0);
   Vec3 last_x = Vec3(0, 0, top), last_f = Vec3::Zero();
   double t = 0.0;
-  const double tick = 1.0 / sc.haptic_rate;
+  const double tick = 1.0 / disc.sc.haptic_rate;
   rig.session->run_stepped(t_end, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
     const Vec3 x = h.device_state().finger[0].position;
     const int c = std::min(spec.cycles - 1, static_cast<int>(t / period));
@@ -270,6 +262,56 @@ inline CycleResult cycle_drum(const CycleSpec& spec) {
   });
   res.report = rig.session->report();
   return res;
+}
+
+// ---- A stroke across the drum: the normal force against the exact one along the path -------
+
+struct StrokeSpec {
+  DrumSpec drum{};          ///< the drum, its mesh, refinement and global step
+  double depth = 3e-3;      ///< m, the device's depth below touch while it strokes
+  double from = -0.04, to = 0.04;  ///< m, along x through the centre
+  double speed = 0.02;      ///< m/s along the stroke
+  double friction = 0.0;
+};
+
+struct StrokeSample {
+  double x = 0.0;       ///< m, the fingertip's offset along the stroke
+  double depth = 0.0;   ///< m, the proxy's depth below touch
+  double normal = 0.0;  ///< N, the rendered force's vertical part
+  double along = 0.0;   ///< N, its part along the stroke (+x)
+  double reference = 0.0;  ///< N, the exact force at that depth and offset (off_centre_force)
+  double error() const { return normal / reference - 1.0; }
+};
+
+/// The drum pressed `depth` at `from`, then stroked to `to` at `speed`; every 50th tick of the
+/// stroke is sampled (the reference is a few shooting solves per sample).
+inline std::vector<StrokeSample> stroke_drum(const StrokeSpec& spec) {
+  const MembraneDrum& d = spec.drum.drum;
+  MembraneDisc disc = membrane_disc(spec.drum);
+  disc.sc.finger.friction = spec.friction;
+  const double r = d.sphere_radius, z = r - spec.depth;
+  const double press = 0.5, settle = 0.3, t_stroke = std::abs(spec.to - spec.from) / spec.speed;
+  devices::Trajectory tr(2);
+  tr.add(0, 0.0, Vec3(spec.from, 0.0, r + 0.001));
+  tr.add(0, press, Vec3(spec.from, 0.0, z));
+  tr.add(0, press + settle, Vec3(spec.from, 0.0, z));
+  tr.add(0, press + settle + t_stroke, Vec3(spec.to, 0.0, z));
+  tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));  // parked away
+  TouchRig rig(std::move(disc.model), std::move(tr), disc.sc, disc.ic, disc.start, spec.drum.solver);
+  std::vector<StrokeSample> out;
+  long k = 0;
+  rig.session->run_stepped(press + settle + t_stroke, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
+    const auto& f = h.last_report().finger[0];
+    if (h.last_report().time < press + settle || !f.in_contact || ++k % 50 != 0) return;
+    StrokeSample s;
+    s.x = f.position.x();
+    s.depth = -(f.proxy.z() - r);
+    s.normal = f.force.z();
+    s.along = f.force.x();
+    s.reference = off_centre_force(d, s.depth, std::abs(f.proxy.x()));
+    out.push_back(s);
+  });
+  return out;
 }
 
 // ---- The handkerchief ----------------------------------------------------------------------
