@@ -158,7 +158,8 @@ TEST(RefinedContact, WholeDrumChildCarriesTheExactForceAtTheExactDepth) {
 // 4 cm on one side to 4 cm on the other at 20 mm/s: the normal force along the path against the
 // exact one at the proxy's depth and offset (off_centre_force). Without refinement the 12 mm
 // mesh is 41% too stiff on average; with it the mean is within the 3% the press is held to. Its
-// worst samples are not yet (a child re-centred under the moving finger: docs/contact.md).
+// worst samples are not yet: on the 25 mm mesh the force dips up to 15% where the contact
+// crosses a global vertex (docs/contact.md).
 TEST(LocalRefinement, StrokeFollowsTheExactForceAlongThePath) {
   struct Case {
     double edge;
