@@ -186,3 +186,26 @@ TEST(EnergyBound, RefinedDrumCyclesGiveTheUserNoEnergy) {
     for (double w : r.work_on_user) EXPECT_LE(w, 1e-8) << dt << " s, " << hz << " Hz";
   }
 }
+
+// The hanging square of the main job at rest, pressed at its middle horizontally from 1 mm before
+// touch to 30 mm past it and back (0.04-0.25 N: a hanging cloth gives way), 3 cycles at 1 and
+// 5 Hz: no cycle gives the user energy, with direct coupling nor on the multirate path at 10 and
+// 20 ms (the swinging cloth dissipates 0.2-4 mJ a cycle; the bound never acts).
+TEST(EnergyBound, HangingSquareCyclesGiveTheUserNoEnergy) {
+  for (double dt : {1e-3, 1e-2, 2e-2})
+    for (double hz : {1.0, 5.0}) {
+      test::CycleSpec c;
+      c.drum.global_dt = dt;
+      c.frequency = hz;
+      c.cycles = 3;
+      c.depth = 30e-3;
+      const test::CycleResult r = test::cycle_hanging_square(c);
+      std::printf("hanging square, global step %2.0f ms, %.0f Hz: peak %.3f N, work on the user per cycle", dt * 1e3,
+                  hz, r.peak_force);
+      for (double w : r.work_on_user) std::printf(" %+.3f", w * 1e6);
+      std::printf(" uJ; bound on %llu ticks, %.2f uJ withheld\n",
+                  static_cast<unsigned long long>(r.report.energy_bound_ticks), r.report.energy_withheld * 1e6);
+      EXPECT_GT(r.peak_force, 0.005) << dt << " s, " << hz << " Hz";  // it was pressed
+      for (double w : r.work_on_user) EXPECT_LE(w, 1e-8) << dt << " s, " << hz << " Hz";
+    }
+}

@@ -264,6 +264,62 @@ inline CycleResult cycle_drum(const CycleSpec& spec) {
   return res;
 }
 
+/// The hanging square of the main job (0.5 m of denim, 22 x 22 quads, its top edge pinned),
+/// settled at rest for 6 s, pressed at its middle from the front, horizontally, from 1 mm before
+/// touch to `spec.depth` past it and back, `spec.cycles` times at `spec.frequency`; the global
+/// step and refinement are `spec.drum`'s (its mesh and drum are unused).
+inline CycleResult cycle_hanging_square(const CycleSpec& spec) {
+  cloth::ClothModel model = square_cloth(denim(), {"top"}, 22, 0.5);
+  cloth::IntegratorConfig ic;
+  ic.dt = 1e-3;
+  ic.gravity = Vec3(0, 0, -9.81);
+  ic.air_damping = 0.5;
+  cloth::ClothState rest = cloth::rest_state(model);
+  {
+    cloth::Integrator settle(model, ic, cloth::make_solver("pcg", touch_pcg()));
+    for (int k = 0; k < 6000; ++k) settle.step(rest);
+    for (auto& v : rest.v) v.setZero();
+  }
+  int mid = 0;  // the vertex nearest the middle of the hanging cloth
+  const Vec3 middle(0.0, 0.25, -0.25);
+  for (int i = 0; i < model.num_vertices(); ++i)
+    if ((rest.x[i] - middle).norm() < (rest.x[mid] - middle).norm()) mid = i;
+  const double r = 0.008;
+  const Vec3 surface = rest.x[mid] + Vec3(0.004, 0.0, -0.003);  // off the vertex, inside a triangle
+  const Vec3 out(0.0, 1.0, 0.0);  // the press comes from +y
+  const double travel = spec.above + spec.depth, period = 1.0 / spec.frequency, t_end = spec.cycles * period;
+  devices::Trajectory tr(2);
+  const int knots = 200;
+  for (int c = 0; c < spec.cycles; ++c)
+    for (int k = 0; k < knots; ++k) {
+      const double t = (c + static_cast<double>(k) / knots) * period;
+      const double in = travel * 0.5 * (1.0 - std::cos(2.0 * M_PI * spec.frequency * t));
+      tr.add(0, t, surface + (r + spec.above - in) * out);
+    }
+  tr.add(0, t_end, surface + (r + spec.above) * out);
+  tr.add(0, t_end + 0.1, surface + (r + spec.above) * out);
+  tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));  // parked away, above the pinned edge
+  haptics::SessionConfig sc = touch_session(0.6);
+  sc.coupling.refine = spec.drum.refine;
+  set_global_step(sc, ic, spec.drum.global_dt, spec.drum.model);
+  TouchRig rig(std::move(model), std::move(tr), sc, ic, rest, "pcg");
+  CycleResult res;
+  res.work_on_user.assign(spec.cycles, 0.0);
+  Vec3 last_x = surface + (r + spec.above) * out, last_f = Vec3::Zero();
+  double t = 0.0;
+  rig.session->run_stepped(t_end, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
+    const Vec3 x = h.device_state().finger[0].position;
+    const int c = std::min(spec.cycles - 1, static_cast<int>(t / period));
+    res.work_on_user[c] += last_f.dot(x - last_x);
+    last_x = x;
+    last_f = h.last_command().force[0];
+    res.peak_force = std::max(res.peak_force, last_f.dot(out));
+    t += 1.0 / sc.haptic_rate;
+  });
+  res.report = rig.session->report();
+  return res;
+}
+
 // ---- A stroke across the drum: the normal force against the exact one along the path -------
 
 struct StrokeSpec {
