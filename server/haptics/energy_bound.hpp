@@ -38,7 +38,7 @@ struct EnergyBoundStats {
 class EnergyBound {
  public:
   /// `period`: the haptic tick, s (the interval a force is held for).
-  explicit EnergyBound(double period) : period_(period) {}
+  explicit EnergyBound(double period) : period_(period) { x_.fill(Vec3::Zero()); }
 
   /// The interval that ends now: `x` the fingertips (scene frame), `sent` the forces the device
   /// held over it (scene frame), `present` the fingers with a fresh sample. The reserve takes

@@ -22,6 +22,8 @@ HapticLoop::HapticLoop(devices::DeviceHandle& device, devices::SafetyGate& gate,
       contact_(std::move(contact)),
       catch_up_(period_),
       passivity_(k_, gate.max_force()) {
+  sent_.fill(Vec3::Zero());
+  damp_.fill(Vec3::Zero());
   // The multirate path renders from a model that is not the cloth itself: bounded by energy.
   if (multirate(mode)) bound_ = std::make_unique<EnergyBound>(period_);
 }
@@ -88,30 +90,57 @@ void HapticLoop::tick(double now) noexcept {
   if (dev_.read(now, state_) == devices::Status::Error) ++device_errors_;
   in_.acquire();
   const ClothSnapshot& s = in_.front();
-  bool any_near = false;
-  for (int f = 0; f < fingers_; ++f) any_near = any_near || (s.time >= 0.0 && s.near[f]);
-  if (!any_near) ++np_skipped_;
-  bool contact = false;
+  count_skipped_narrow_phase(s);
   report_.time = now;
   report_.tick = tick_;
   // A finger is there only while the device has a fresh sample of it: before its first
   // sample the device's position means nothing (a UDP rig not yet connected reads as the
   // device origin, which may be inside the cloth), and after a watchdog trip it is unknown.
   const bool present = gate_.fresh(now, state_.received_time);
-  // A late tick's motion reaches the contact over the ticks it missed (late_tick.hpp).
-  if (catch_up_.late(tick_dt)) ++late_ticks_;
   std::array<Fingertip, kMaxFingers> tips{};
   std::array<Vec3, kMaxFingers> measured{};
-  std::array<bool, kMaxFingers> here{};
+  read_fingertips(tick_dt, present, tips, measured);
+  touch(s, now, tick_dt, present, tips, measured);
+  if (bound_) bound_energy(tips);
+  command(tick_dt, present, tips, measured);
+  gate_.apply(now, state_.received_time, cmd_, gated_);
+  if (dev_.write(now, gated_) == devices::Status::Error) ++device_errors_;
+  for (int f = 0; f < fingers_; ++f) sent_[f] = map_.R * gated_.force[f];
+  report_felt_forces();
+  out_.back() = report_;
+  out_.publish();
+  last_now_ = now;
+}
+
+void HapticLoop::count_skipped_narrow_phase(const ClothSnapshot& s) noexcept {
+  bool any_near = false;
+  for (int f = 0; f < fingers_; ++f) any_near = any_near || (s.time >= 0.0 && s.near[f]);
+  if (!any_near) ++np_skipped_;
+}
+
+// The device's fingertips in the scene frame (`measured`), and as the contact takes them
+// (`tips`): a late tick's motion reaches the contact over the ticks it missed (late_tick.hpp).
+void HapticLoop::read_fingertips(double tick_dt, bool present, std::array<Fingertip, kMaxFingers>& tips,
+                                 std::array<Vec3, kMaxFingers>& measured) noexcept {
+  if (catch_up_.late(tick_dt)) ++late_ticks_;
   for (int f = 0; f < fingers_; ++f) {
     measured[f] = map_.origin + map_.R * state_.finger[f].position;
     const bool catch_up = present && guard_;
     tips[f] = Fingertip{f, catch_up ? catch_up_.seen(f, measured[f], tick_dt) : measured[f],
                         map_.R * state_.finger[f].velocity};
-    here[f] = present;
   }
+}
+
+// Each finger's contact with the cloth (the mode's haptic half), or its absence; the energy
+// bound takes the interval that ended first (it needs the force held over it).
+void HapticLoop::touch(const ClothSnapshot& s, double now, double tick_dt, bool present,
+                       const std::array<Fingertip, kMaxFingers>& tips,
+                       const std::array<Vec3, kMaxFingers>& measured) noexcept {
+  std::array<bool, kMaxFingers> here{};
+  for (int f = 0; f < fingers_; ++f) here[f] = present;
   contact_->prepare(s, tips, here, fingers_);
   if (bound_) bound_->account(measured, sent_, here, fingers_);
+  bool contact = false;
   for (int f = 0; f < fingers_; ++f) {
     FingerReport& r = report_.finger[f];
     if (present) {
@@ -123,30 +152,33 @@ void HapticLoop::tick(double now) noexcept {
       passivity_.reset(f);
     }
     r.present = present;
+    contact = contact || r.in_contact;
   }
-  if (bound_) bound_energy(tips);
+  if (contact) ++contact_ticks_;
+}
+
+// The command per finger in the device frame: the contact's force, plus the passivity
+// controller's damping where the coupling gave energy over the last interval.
+void HapticLoop::command(double tick_dt, bool present, const std::array<Fingertip, kMaxFingers>& tips,
+                         const std::array<Vec3, kMaxFingers>& measured) noexcept {
   for (int f = 0; f < fingers_; ++f) {
-    FingerReport& r = report_.finger[f];
+    const FingerReport& r = report_.finger[f];
     Vec3& damp = damp_[f];
     damp.setZero();
-    // The coupling's energy over the last interval, with the force the user got then.
     if (present)
       damp = passivity_.observe(f, tick_dt, sent_[f], measured[f], r.proxy, tips[f].velocity, r.force,
                                 r.spring, r.in_contact);
-    contact = contact || r.in_contact;
-    // Scene -> device frame for the force.
     if (!guard_) damp.setZero();
     cmd_.force[f] = map_.R.transpose() * (r.force + damp);
   }
-  if (contact) ++contact_ticks_;
-  gate_.apply(now, state_.received_time, cmd_, gated_);
-  if (dev_.write(now, gated_) == devices::Status::Error) ++device_errors_;
-  for (int f = 0; f < fingers_; ++f) sent_[f] = map_.R * gated_.force[f];
-  // The simulation gets what the user actually feels (after the gate), in the scene frame, but
-  // for the passivity controller's damping, which acts between the hand and the coupling only:
-  // the contact's force, scaled as the gate scaled the command (clamp, fade). (Subtracting the
-  // damping from the gated force instead let a clamped command hand the cloth more than the
-  // contact asked: the paper's patch model at a 10 ms step then blew up the 16k cloth.)
+}
+
+// The simulation gets what the user actually feels (after the gate), in the scene frame, but
+// for the passivity controller's damping, which acts between the hand and the coupling only:
+// the contact's force, scaled as the gate scaled the command (clamp, fade). (Subtracting the
+// damping from the gated force instead let a clamped command hand the cloth more than the
+// contact asked: the paper's patch model at a 10 ms step then blew up the 16k cloth.)
+void HapticLoop::report_felt_forces() noexcept {
   for (int f = 0; f < fingers_; ++f) {
     FingerReport& r = report_.finger[f];
     if (!r.in_contact) continue;
@@ -157,9 +189,6 @@ void HapticLoop::tick(double now) noexcept {
       r.force *= asked > 0.0 ? std::min(1.0, gated_.force[f].norm() / asked) : 0.0;
     }
   }
-  out_.back() = report_;
-  out_.publish();
-  last_now_ = now;
 }
 
 }  // namespace hapticloth::haptics

@@ -79,7 +79,16 @@ class HapticLoop {
 
  private:
   static void absent(FingerReport& r, const Vec3& centre, const Vec3& velocity) noexcept;
+  void count_skipped_narrow_phase(const ClothSnapshot& s) noexcept;
+  void read_fingertips(double tick_dt, bool present, std::array<Fingertip, kMaxFingers>& tips,
+                       std::array<Vec3, kMaxFingers>& measured) noexcept;
+  void touch(const ClothSnapshot& s, double now, double tick_dt, bool present,
+             const std::array<Fingertip, kMaxFingers>& tips,
+             const std::array<Vec3, kMaxFingers>& measured) noexcept;
   void bound_energy(const std::array<Fingertip, kMaxFingers>& tips) noexcept;
+  void command(double tick_dt, bool present, const std::array<Fingertip, kMaxFingers>& tips,
+               const std::array<Vec3, kMaxFingers>& measured) noexcept;
+  void report_felt_forces() noexcept;
 
   devices::DeviceHandle& dev_;
   devices::SafetyGate& gate_;

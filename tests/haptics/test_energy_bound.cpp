@@ -19,6 +19,13 @@ using haptics::Vec3;
 namespace {
 constexpr double kT = 1e-3;  // s, the haptic tick
 
+// Vectors per finger, zero (an Eigen vector's default constructor leaves it uninitialised).
+std::array<Vec3, kMaxFingers> zeros() {
+  std::array<Vec3, kMaxFingers> a;
+  a.fill(Vec3::Zero());
+  return a;
+}
+
 constexpr double kK = 200.0, kA = 0.004, kW = 2 * M_PI * 2.0;  // N/m, m, rad/s
 
 // What the bound may be off by: it limits the coming tick's work with the velocity at its
@@ -40,7 +47,7 @@ LagRun lagging_spring(bool bounded, double lag, double b = 0.0, int cycles = 3) 
   const double k = kK, A = kA, f = 2.0, w = kW;
   const int per_cycle = static_cast<int>(std::lround(1.0 / (f * kT)));
   EnergyBound bound(kT);
-  std::array<Vec3, kMaxFingers> x{}, sent{}, force{}, v{};
+  std::array<Vec3, kMaxFingers> x = zeros(), sent = zeros(), force = zeros(), v = zeros();
   std::array<bool, kMaxFingers> present{}, touching{};
   present[0] = true;
   LagRun r;
@@ -102,7 +109,7 @@ TEST(EnergyBound, LeavesAPassiveModelAlone) {
 // force while the finger slides) is kept whole.
 TEST(EnergyBound, KeepsTheForceAcrossTheMotion) {
   EnergyBound bound(kT);
-  std::array<Vec3, kMaxFingers> x{}, sent{}, force{}, v{};
+  std::array<Vec3, kMaxFingers> x = zeros(), sent = zeros(), force = zeros(), v = zeros();
   std::array<bool, kMaxFingers> present{}, touching{};
   present[0] = touching[0] = true;
   bound.account(x, sent, present, 1);
@@ -118,7 +125,7 @@ TEST(EnergyBound, KeepsTheForceAcrossTheMotion) {
 // other (a pinch shares one cloth), and emptied when no finger touches.
 TEST(EnergyBound, OneReserveForAllFingersEmptiedBetweenTouches) {
   EnergyBound bound(kT);
-  std::array<Vec3, kMaxFingers> x{}, sent{}, force{}, v{};
+  std::array<Vec3, kMaxFingers> x = zeros(), sent = zeros(), force = zeros(), v = zeros();
   std::array<bool, kMaxFingers> present{}, touching{};
   present[0] = present[1] = touching[0] = touching[1] = true;
   bound.account(x, sent, present, 2);
@@ -159,7 +166,9 @@ TEST(EnergyBound, DrumCyclesGiveTheUserNoEnergy) {
                   static_cast<unsigned long long>(r.report.energy_bound_ticks), r.report.energy_withheld * 1e6);
       for (double w : r.work_on_user) EXPECT_LE(w, 1e-8) << dt << " s, " << hz << " Hz";
       if (dt == 1e-3 && hz == 1.0) direct_peak = r.peak_force;
-      if (hz == 1.0) EXPECT_NEAR(r.peak_force / direct_peak, 1.0, 0.03) << dt;
+      if (hz == 1.0) {
+        EXPECT_NEAR(r.peak_force / direct_peak, 1.0, 0.03) << dt;
+      }
     }
 }
 

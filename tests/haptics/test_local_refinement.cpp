@@ -182,7 +182,9 @@ TEST(LocalRefinement, StrokeFollowsTheExactForceAlongThePath) {
                 "over %zu samples; sideways / normal %+.4f\n", c.edge * 1e3, haptics::to_string(c.refine),
                 100 * mean, 100 * worst, s.size(), drag / normal);
     EXPECT_GT(s.size(), 70u);
-    if (c.refine == haptics::Refine::On) EXPECT_LE(std::abs(mean), 0.03) << c.edge;
+    if (c.refine == haptics::Refine::On) {
+      EXPECT_LE(std::abs(mean), 0.03) << c.edge;
+    }
     EXPECT_LT(std::abs(drag / normal), 0.01) << c.edge;  // frictionless: no drag beyond 1%
   }
 }
