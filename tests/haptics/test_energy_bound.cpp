@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <string>
 
 #include "haptics/energy_bound.hpp"
 #include "support/touch_scenes.hpp"
@@ -73,6 +74,20 @@ LagRun lagging_spring(bool bounded, double lag, double b = 0.0, int cycles = 3) 
   }
   r.limited = bound.stats().limited_ticks;
   return r;
+}
+// Prints a run of closed cycles and expects no cycle to give the user energy.
+void expect_no_energy_given(const std::string& label, const test::CycleResult& r) {
+  std::printf("%s: peak %.3f N, work on the user per cycle", label.c_str(), r.peak_force);
+  for (double w : r.work_on_user) std::printf(" %+.3f", w * 1e6);
+  std::printf(" uJ; bound on %llu ticks, %.2f uJ withheld\n",
+              static_cast<unsigned long long>(r.report.energy_bound_ticks), r.report.energy_withheld * 1e6);
+  for (double w : r.work_on_user) EXPECT_LE(w, 1e-8) << label;
+}
+
+std::string label(const char* what, double dt, double hz) {
+  char b[96];
+  std::snprintf(b, sizeof b, "%s, global step %2.0f ms, %.0f Hz", what, dt * 1e3, hz);
+  return b;
 }
 }  // namespace
 
@@ -159,12 +174,7 @@ TEST(EnergyBound, DrumCyclesGiveTheUserNoEnergy) {
       c.frequency = hz;
       c.cycles = 3;
       const test::CycleResult r = test::cycle_drum(c);
-      std::printf("global step %2.0f ms, %.0f Hz: peak %.3f N, work on the user per cycle", dt * 1e3, hz,
-                  r.peak_force);
-      for (double w : r.work_on_user) std::printf(" %+.3f", w * 1e6);
-      std::printf(" uJ; bound on %llu ticks, %.2f uJ withheld\n",
-                  static_cast<unsigned long long>(r.report.energy_bound_ticks), r.report.energy_withheld * 1e6);
-      for (double w : r.work_on_user) EXPECT_LE(w, 1e-8) << dt << " s, " << hz << " Hz";
+      expect_no_energy_given(label("drum", dt, hz), r);
       if (dt == 1e-3 && hz == 1.0) direct_peak = r.peak_force;
       if (hz == 1.0) {
         EXPECT_NEAR(r.peak_force / direct_peak, 1.0, 0.03) << dt;
@@ -186,13 +196,7 @@ TEST(EnergyBound, RefinedDrumCyclesGiveTheUserNoEnergy) {
     c.drum.global_dt = dt;
     c.frequency = hz;
     c.cycles = 3;
-    const test::CycleResult r = test::cycle_drum(c);
-    std::printf("refined 12 mm mesh, %2.0f ms, %.0f Hz: peak %.3f N, work on the user per cycle", dt * 1e3, hz,
-                r.peak_force);
-    for (double w : r.work_on_user) std::printf(" %+.3f", w * 1e6);
-    std::printf(" uJ; bound on %llu ticks, %.2f uJ withheld\n",
-                static_cast<unsigned long long>(r.report.energy_bound_ticks), r.report.energy_withheld * 1e6);
-    for (double w : r.work_on_user) EXPECT_LE(w, 1e-8) << dt << " s, " << hz << " Hz";
+    expect_no_energy_given(label("refined 12 mm drum", dt, hz), test::cycle_drum(c));
   }
 }
 
@@ -209,12 +213,7 @@ TEST(EnergyBound, HangingSquareCyclesGiveTheUserNoEnergy) {
       c.cycles = 3;
       c.depth = 30e-3;
       const test::CycleResult r = test::cycle_hanging_square(c);
-      std::printf("hanging square, global step %2.0f ms, %.0f Hz: peak %.3f N, work on the user per cycle", dt * 1e3,
-                  hz, r.peak_force);
-      for (double w : r.work_on_user) std::printf(" %+.3f", w * 1e6);
-      std::printf(" uJ; bound on %llu ticks, %.2f uJ withheld\n",
-                  static_cast<unsigned long long>(r.report.energy_bound_ticks), r.report.energy_withheld * 1e6);
+      expect_no_energy_given(label("hanging square", dt, hz), r);
       EXPECT_GT(r.peak_force, 0.005) << dt << " s, " << hz << " Hz";  // it was pressed
-      for (double w : r.work_on_user) EXPECT_LE(w, 1e-8) << dt << " s, " << hz << " Hz";
     }
 }

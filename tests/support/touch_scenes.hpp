@@ -226,42 +226,60 @@ struct CycleResult {
   haptics::SessionReport report;
 };
 
-/// The drum pressed and released at its centre by a fingertip moving as
-/// z(t) = top - (above + depth) (1 - cos 2 pi f t) / 2, from above touch to `depth` below it
-/// and back, `cycles` times. Each cycle's work of the commanded force on the device,
-/// sum F_n . (x_n+1 - x_n) (the force held over the tick that follows it).
-inline CycleResult cycle_drum(const CycleSpec& spec) {
-  const MembraneDrum& d = spec.drum.drum;
-  MembraneDisc disc = membrane_disc(spec.drum);
-  const double r = d.sphere_radius, top = r + spec.above, travel = spec.above + spec.depth;
-  const double period = 1.0 / spec.frequency, t_end = spec.cycles * period;
+/// The device's fingertip pressing along -`out` into the surface point `surface` and back,
+/// z(t) = (r + above) - (above + depth) (1 - cos 2 pi f t) / 2 from it, `spec.cycles` times;
+/// finger 1 parked at `parked`.
+inline devices::Trajectory press_cycles(const CycleSpec& spec, const Vec3& surface, const Vec3& out, double r,
+                                        const Vec3& parked) {
+  const double travel = spec.above + spec.depth, period = 1.0 / spec.frequency, t_end = spec.cycles * period;
+  const Vec3 top = surface + (r + spec.above) * out;
   devices::Trajectory tr(2);
   const int knots = 200;  // per cycle: piecewise linear, 5 ms apart at 1 Hz
   for (int c = 0; c < spec.cycles; ++c)
     for (int k = 0; k < knots; ++k) {
       const double t = (c + static_cast<double>(k) / knots) * period;
-      tr.add(0, t, Vec3(0, 0, top - travel * 0.5 * (1.0 - std::cos(2.0 * M_PI * spec.frequency * t))));
+      tr.add(0, t, top - travel * 0.5 * (1.0 - std::cos(2.0 * M_PI * spec.frequency * t)) * out);
     }
-  tr.add(0, t_end, Vec3(0, 0, top));
-  tr.add(0, t_end + 0.1, Vec3(0, 0, top));
-  tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));  // parked away
-  TouchRig rig(std::move(disc.model), std::move(tr), disc.sc, disc.ic, disc.start, spec.drum.solver);
+  tr.add(0, t_end, top);
+  tr.add(0, t_end + 0.1, top);
+  tr.add(1, 0.0, parked);
+  return tr;
+}
+
+/// Runs `rig` over the cycles of press_cycles and adds up each cycle's work of the commanded
+/// force on the device, sum F_n . (x_n+1 - x_n) (the force held over the tick that follows it);
+/// `top` the fingertip's start, `out` the press's outward direction (for the peak force).
+inline CycleResult run_cycles(TouchRig& rig, const CycleSpec& spec, const Vec3& top, const Vec3& out,
+                              double haptic_rate) {
+  const double period = 1.0 / spec.frequency;
   CycleResult res;
   res.work_on_user.assign(spec.cycles, 0.0);
-  Vec3 last_x = Vec3(0, 0, top), last_f = Vec3::Zero();
+  Vec3 last_x = top, last_f = Vec3::Zero();
   double t = 0.0;
-  const double tick = 1.0 / disc.sc.haptic_rate;
-  rig.session->run_stepped(t_end, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
+  rig.session->run_stepped(spec.cycles * period, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
     const Vec3 x = h.device_state().finger[0].position;
     const int c = std::min(spec.cycles - 1, static_cast<int>(t / period));
     res.work_on_user[c] += last_f.dot(x - last_x);
     last_x = x;
     last_f = h.last_command().force[0];
-    res.peak_force = std::max(res.peak_force, last_f.z());
-    t += tick;
+    res.peak_force = std::max(res.peak_force, last_f.dot(out));
+    t += 1.0 / haptic_rate;
   });
   res.report = rig.session->report();
   return res;
+}
+
+/// The drum pressed and released at its centre by a fingertip moving as
+/// z(t) = top - (above + depth) (1 - cos 2 pi f t) / 2, from above touch to `depth` below it
+/// and back, `cycles` times. Each cycle's work of the commanded force on the device,
+/// sum F_n . (x_n+1 - x_n) (the force held over the tick that follows it).
+inline CycleResult cycle_drum(const CycleSpec& spec) {
+  MembraneDisc disc = membrane_disc(spec.drum);
+  const double r = spec.drum.drum.sphere_radius;
+  const Vec3 out = Vec3::UnitZ();
+  devices::Trajectory tr = press_cycles(spec, Vec3::Zero(), out, r, Vec3(0.2, 0.2, 0.2));
+  TouchRig rig(std::move(disc.model), std::move(tr), disc.sc, disc.ic, disc.start, spec.drum.solver);
+  return run_cycles(rig, spec, (r + spec.above) * out, out, disc.sc.haptic_rate);
 }
 
 /// The hanging square of the main job (0.5 m of denim, 22 x 22 quads, its top edge pinned),
@@ -287,37 +305,13 @@ inline CycleResult cycle_hanging_square(const CycleSpec& spec) {
   const double r = 0.008;
   const Vec3 surface = rest.x[mid] + Vec3(0.004, 0.0, -0.003);  // off the vertex, inside a triangle
   const Vec3 out(0.0, 1.0, 0.0);  // the press comes from +y
-  const double travel = spec.above + spec.depth, period = 1.0 / spec.frequency, t_end = spec.cycles * period;
-  devices::Trajectory tr(2);
-  const int knots = 200;
-  for (int c = 0; c < spec.cycles; ++c)
-    for (int k = 0; k < knots; ++k) {
-      const double t = (c + static_cast<double>(k) / knots) * period;
-      const double in = travel * 0.5 * (1.0 - std::cos(2.0 * M_PI * spec.frequency * t));
-      tr.add(0, t, surface + (r + spec.above - in) * out);
-    }
-  tr.add(0, t_end, surface + (r + spec.above) * out);
-  tr.add(0, t_end + 0.1, surface + (r + spec.above) * out);
-  tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));  // parked away, above the pinned edge
+  // Finger 1 parked above the pinned edge.
+  devices::Trajectory tr = press_cycles(spec, surface, out, r, Vec3(0.2, 0.2, 0.2));
   haptics::SessionConfig sc = touch_session(0.6);
   sc.coupling.refine = spec.drum.refine;
   set_global_step(sc, ic, spec.drum.global_dt, spec.drum.model);
   TouchRig rig(std::move(model), std::move(tr), sc, ic, rest, "pcg");
-  CycleResult res;
-  res.work_on_user.assign(spec.cycles, 0.0);
-  Vec3 last_x = surface + (r + spec.above) * out, last_f = Vec3::Zero();
-  double t = 0.0;
-  rig.session->run_stepped(t_end, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
-    const Vec3 x = h.device_state().finger[0].position;
-    const int c = std::min(spec.cycles - 1, static_cast<int>(t / period));
-    res.work_on_user[c] += last_f.dot(x - last_x);
-    last_x = x;
-    last_f = h.last_command().force[0];
-    res.peak_force = std::max(res.peak_force, last_f.dot(out));
-    t += 1.0 / sc.haptic_rate;
-  });
-  res.report = rig.session->report();
-  return res;
+  return run_cycles(rig, spec, surface + (r + spec.above) * out, out, sc.haptic_rate);
 }
 
 // ---- A stroke across the drum: the normal force against the exact one along the path -------
