@@ -92,7 +92,7 @@ int main(int argc, char** argv) {
   double time = NAN, fps = 30.0, start = NAN, end = NAN, fov = 35.0, strain_range = 0.0;
   double timeout = 5.0, duration = 10.0;
   int supersample = 2;
-  bool no_fingers = false, no_colorbar = false, no_label = false;
+  bool no_fingers = false, no_colorbar = false, no_label = false, no_refined_edges = false;
   Style style;
   auto* o_log = cli.add_option("--log", log, "LCM log written by hapticloth-server --lcm-log");
   auto* o_zen = cli.add_option("--zenoh", endpoint, "live: connect to the server's zenoh endpoint (e.g. tcp/127.0.0.1:7447)");
@@ -132,6 +132,8 @@ int main(int argc, char** argv) {
   cli.add_flag("--no-fingers", no_fingers, "do not draw the fingertips");
   cli.add_flag("--no-colorbar", no_colorbar, "do not draw the colour bar");
   cli.add_flag("--no-label", no_label, "do not write time and forces on the picture");
+  cli.add_flag("--no-refined-edges", no_refined_edges,
+               "do not draw the edges of the refined cloth under the fingertips (it is drawn either way)");
   if (const int rc = hapticloth::opts::parse(cli, argc, argv); rc >= 0) return rc;
 
   const std::string me = "hapticloth-render: ";
@@ -162,6 +164,7 @@ int main(int argc, char** argv) {
   style.fingers = !no_fingers;
   style.colorbar = !no_colorbar;
   style.label = !no_label;
+  style.refined_edges = !no_refined_edges;
 
   std::string mp4_skip;
   if (!mp4.empty() && find_on_path("ffmpeg").empty()) {

@@ -45,6 +45,23 @@ void set_topology(Recording& rec, const hapticloth::cloth_topology_t& t) {
   rec.has_topology = true;
 }
 
+// The refined children of a cloth state; false if their triangles index vertices they lack.
+bool set_refined(RefinedFrame& r, const hapticloth::cloth_state_t& m) {
+  r.positions.resize(m.num_refined_vertices);
+  for (int i = 0; i < m.num_refined_vertices; ++i) r.positions[i] = vec(m.refined_positions[i].data());
+  r.mesh.triangles.resize(m.num_refined_triangles);
+  r.mesh.weave_uv.resize(m.num_refined_triangles);
+  for (int i = 0; i < m.num_refined_triangles; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const int v = m.refined_triangles[i][k];
+      if (v < 0 || v >= m.num_refined_vertices) return false;
+      r.mesh.triangles[i][k] = v;
+      r.mesh.weave_uv[i][k] = {m.refined_weave_uv[i][k][0], m.refined_weave_uv[i][k][1]};
+    }
+  r.region.assign(m.refined_region.begin(), m.refined_region.end());
+  return true;
+}
+
 // A topology whose indices are out of range cannot be drawn: treat it like a corrupt message.
 bool valid(const hapticloth::cloth_topology_t& t) {
   for (const auto& tri : t.triangles)
@@ -65,6 +82,7 @@ bool add_message(Recording& rec, const std::uint8_t* data, std::size_t len) {
     f.step = m.step;
     f.positions.resize(m.num_vertices);
     for (int i = 0; i < m.num_vertices; ++i) f.positions[i] = vec(m.positions[i].data());
+    if (!set_refined(f.refined, m)) return false;
     rec.frames.push_back(std::move(f));
     return true;
   }
@@ -107,7 +125,11 @@ bool add_message(Recording& rec, const std::uint8_t* data, std::size_t len) {
 
 void finish(Recording& rec) {
   const std::size_t n = rec.scene.rest_positions.size();
-  const auto wrong = [n](const ClothFrame& f) { return f.positions.size() != n; };
+  const int nt = static_cast<int>(rec.scene.triangles.size());
+  const auto wrong = [n, nt](const ClothFrame& f) {
+    return f.positions.size() != n ||
+           std::any_of(f.refined.region.begin(), f.refined.region.end(), [nt](int t) { return t < 0 || t >= nt; });
+  };
   const auto before = rec.frames.size();
   rec.frames.erase(std::remove_if(rec.frames.begin(), rec.frames.end(), wrong), rec.frames.end());
   rec.dropped += before - rec.frames.size();

@@ -25,11 +25,21 @@ struct Scene {
   double haptic_rate = 1000.0;                                ///< Hz
 };
 
+/// The refined children under the fingertips in one cloth_state_t (paper 4.2.2): a mesh of
+/// their own, drawn in place of the global triangles in `region`. Empty when none.
+struct RefinedFrame {
+  Scene mesh;                    ///< triangles and weave coordinates (no rest positions)
+  std::vector<Vec3f> positions;  ///< m, scene frame, one per mesh vertex
+  std::vector<int> region;       ///< global triangles (Scene::triangles) the children stand in for
+  bool empty() const { return mesh.triangles.empty(); }
+};
+
 /// One cloth_state_t.
 struct ClothFrame {
   double time = 0.0;        ///< s, session loop clock
   std::int64_t step = 0;
   std::vector<Vec3f> positions;  ///< m, scene frame, one per Scene vertex
+  RefinedFrame refined;
 };
 
 /// One finger at one haptic tick (scene frame).
@@ -52,7 +62,7 @@ struct Recording {
   Scene scene;
   std::vector<ClothFrame> frames;    ///< in time order (after finish())
   std::vector<HapticTick> haptics;   ///< in time order (after finish())
-  std::size_t dropped = 0;           ///< cloth states whose vertex count is not the mesh's
+  std::size_t dropped = 0;           ///< cloth states that do not fit the mesh (vertex count, refined region)
 
   /// Index of the frame whose time is nearest `time`. `frames` must not be empty.
   std::size_t frame_near(double time) const;
@@ -72,8 +82,9 @@ class InputError : public std::runtime_error {
 /// false for bytes that are none of these (other types, corrupt data).
 bool add_message(Recording& rec, const std::uint8_t* data, std::size_t len);
 
-/// Sorts frames and haptic ticks by time and drops cloth states that do not fit the mesh
-/// (counted in `dropped`). Call once all messages are in.
+/// Sorts frames and haptic ticks by time and drops cloth states that do not fit the mesh (their
+/// vertex count, or a refined region naming a triangle it lacks; counted in `dropped`). Call
+/// once all messages are in.
 void finish(Recording& rec);
 
 /// Reads an LCM log written by hapticloth-server --lcm-log. Throws InputError

@@ -23,6 +23,7 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr Rgb kFingerColors[] = {{232, 125, 30}, {30, 150, 175}, {150, 80, 190}, {90, 165, 60}};
 constexpr Rgb kArrowColor{215, 30, 35};
 constexpr Rgb kTextColor{40, 40, 40};
+constexpr Rgb kRefinedEdge{60, 60, 60};
 
 Rgb finger_color(std::size_t f) { return kFingerColors[f % std::size(kFingerColors)]; }
 
@@ -158,6 +159,49 @@ std::vector<Eigen::Vector3f> vertex_normals(const Scene& s, const std::vector<Ve
     v = l > 0 ? Eigen::Vector3f(v / l) : Eigen::Vector3f::UnitZ();
   }
   return n;
+}
+
+// The corners of `scene`'s triangles at positions x, but those `hidden` (empty: none), as the
+// style colours them: per-vertex normals, the weave texture's coordinates or eq. 4's strain.
+void add_cloth(Mesh& m, const Scene& scene, const std::vector<Vec3f>& x, const std::vector<bool>& hidden,
+               const Style& style) {
+  const std::vector<Eigen::Vector3f> n = vertex_normals(scene, x);
+  const bool textured = style.color == ColorMode::Weave;
+  std::vector<cloth::Strains> eps;
+  StrainComponent comp = StrainComponent::Weft;
+  if (!textured) {
+    comp = style.color == ColorMode::Weft ? StrainComponent::Weft
+         : style.color == ColorMode::Warp ? StrainComponent::Warp
+                                          : StrainComponent::Shear;
+    StrainField(scene).compute(x, eps);
+  }
+  const float inv_pitch = static_cast<float>(1.0 / style.weave_pitch);
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+    if (!hidden.empty() && hidden[i]) continue;
+    const auto& t = scene.triangles[i];
+    const std::array<float, 4> c =
+        textured ? std::array<float, 4>{1, 1, 1, 1} : rgba(diverging_color(component(eps[i], comp) / style.strain_range));
+    for (int k = 0; k < 3; ++k)
+      m.corner(x[t[k]], n[t[k]], c, scene.weave_uv[i][k][0] * inv_pitch, scene.weave_uv[i][k][1] * inv_pitch);
+  }
+}
+
+// The edges of a refined child as thin unlit lines, drawn over its surface (depth-tested, so a
+// fold in front hides them): where the contact is resolved finer than the global mesh.
+void draw_edges(const Scene& mesh, const std::vector<Vec3f>& x, int supersample) {
+  glDisable(GL_LIGHTING);
+  glLineWidth(static_cast<float>(supersample));  // one pixel of the picture
+  glColor3f(kRefinedEdge[0] / 255.0f, kRefinedEdge[1] / 255.0f, kRefinedEdge[2] / 255.0f);
+  glBegin(GL_LINES);
+  for (const auto& t : mesh.triangles)
+    for (int k = 0; k < 3; ++k) {
+      const Vec3f& a = x[t[k]];
+      const Vec3f& b = x[t[(k + 1) % 3]];
+      glVertex3f(a.x(), a.y(), a.z());
+      glVertex3f(b.x(), b.y(), b.z());
+    }
+  glEnd();
+  glEnable(GL_LIGHTING);
 }
 
 std::string format(const char* fmt, double v) {
@@ -367,27 +411,20 @@ Image Renderer::render(const Scene& scene, const ClothFrame& frame, const Haptic
   glMaterialfv(GL_FRONT_AND_BACK, GL_SPECULAR, white);
   glMaterialf(GL_FRONT_AND_BACK, GL_SHININESS, 24.0f);
 
-  // --- the cloth: per-vertex normals, per-triangle colour or the weave texture
-  const std::vector<Vec3f>& x = frame.positions;
-  const std::vector<Eigen::Vector3f> n = vertex_normals(scene, x);
+  // --- the cloth: per-vertex normals, per-triangle colour or the weave texture; the refined
+  // children under the fingertips in place of the global triangles they stand in for.
   const bool textured = style.color == ColorMode::Weave;
-  std::vector<cloth::Strains> eps;
-  StrainComponent comp = StrainComponent::Weft;
-  if (!textured) {
-    comp = style.color == ColorMode::Weft ? StrainComponent::Weft
-         : style.color == ColorMode::Warp ? StrainComponent::Warp
-                                          : StrainComponent::Shear;
-    StrainField(scene).compute(x, eps);
+  const RefinedFrame& refined = frame.refined;
+  std::vector<bool> hidden(scene.triangles.size(), false);
+  for (const int t : refined.region) {
+    if (t < 0 || static_cast<std::size_t>(t) >= hidden.size())
+      throw std::invalid_argument("refined region names triangle " + std::to_string(t) + ", the mesh has " +
+                                  std::to_string(hidden.size()));
+    hidden[t] = true;
   }
   im.cloth.clear();
-  const float inv_pitch = static_cast<float>(1.0 / style.weave_pitch);
-  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
-    const auto& t = scene.triangles[i];
-    const std::array<float, 4> c =
-        textured ? std::array<float, 4>{1, 1, 1, 1} : rgba(diverging_color(component(eps[i], comp) / style.strain_range));
-    for (int k = 0; k < 3; ++k)
-      im.cloth.corner(x[t[k]], n[t[k]], c, scene.weave_uv[i][k][0] * inv_pitch, scene.weave_uv[i][k][1] * inv_pitch);
-  }
+  add_cloth(im.cloth, scene, frame.positions, hidden, style);
+  if (!refined.empty()) add_cloth(im.cloth, refined.mesh, refined.positions, {}, style);
   if (textured) {
     glEnable(GL_TEXTURE_2D);
     glBindTexture(GL_TEXTURE_2D, im.texture);
@@ -399,6 +436,7 @@ Image Renderer::render(const Scene& scene, const ClothFrame& frame, const Haptic
   im.cloth.draw(textured);
   glDisable(GL_POLYGON_OFFSET_FILL);
   glDisable(GL_TEXTURE_2D);
+  if (style.refined_edges && !refined.empty()) draw_edges(refined.mesh, refined.positions, ss_);
 
   // --- fingertips: the proxy solid, the device position as a translucent ghost, the spring
   // between them and the force on the finger as an arrow from the proxy.

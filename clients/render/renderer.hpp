@@ -1,6 +1,8 @@
 // Offscreen rendering of a cloth state with OSMesa (no display needed): lit, two-sided cloth
 // with per-vertex normals, coloured by a procedural weave texture or by one strain of eq. 4
-// per triangle (with a colour bar); fingertips as spheres with their force arrows.
+// per triangle (with a colour bar); fingertips as spheres with their force arrows. Where the
+// simulation refines the cloth under a fingertip (paper 4.2.2), the refined child is drawn in
+// place of the global triangles it stands in for, with its edges.
 #pragma once
 
 #include <memory>
@@ -27,6 +29,7 @@ struct Style {
   double finger_radius = 0.008;   ///< m
   double force_scale = 0.02;      ///< m of arrow per N of force; 0: no arrows
   bool colorbar = true;           ///< strain modes: the colour bar at the right
+  bool refined_edges = true;      ///< the edges of the refined children under the fingertips
   bool label = true;              ///< time, scene and finger forces (swatch filled: in contact) at the top left
   Rgb background{246, 246, 243};
 };

@@ -5,6 +5,7 @@
 
 #include "hal/device.hpp"
 #include "haptics/handoff.hpp"
+#include "haptics/refined_regions.hpp"
 #include "haptics/stats.hpp"
 
 namespace hapticloth::haptics {
@@ -14,6 +15,9 @@ class SessionObserver {
   virtual ~SessionObserver() = default;
   /// Simulation thread, after every global step (the snapshot the haptic loop will see).
   virtual void on_sim_step(const ClothSnapshot&) noexcept {}
+  /// Simulation thread, before on_sim_step, when the local refinement's children changed
+  /// (settled, built or dropped) since the last call: what a viewer draws of them.
+  virtual void on_refined(const RefinedRegions&) noexcept {}
   /// Haptic thread, after every tick: the contacts, the raw device state and the gated command.
   virtual void on_haptic_tick(const HapticReport&, const devices::DeviceState&,
                               const devices::DeviceCommand&) noexcept {}

@@ -10,6 +10,7 @@ void InlineRefinement::after_step(const cloth::ClothState& s, FingertipContact& 
   in_.take(s, contact, fingers);
   r_->update(in_);
   ++updates_;
+  regions_.gather(*r_, fingers, updates_);
   for (int f = 0; f < fingers; ++f) contact.set_refined_compliance(f, r_->compliance(f));
 }
 
@@ -36,6 +37,8 @@ void BackgroundRefinement::after_step(const cloth::ClothState& s, FingertipConta
     pending_.take(s, contact, fingers);
     has_pending_ = true;
     c = compliance_;
+    if (regions_ready_) std::swap(ready_, regions_);  // storage swapped, not copied
+    regions_ready_ = false;
   }
   cv_.notify_one();
   for (int f = 0; f < fingers; ++f) contact.set_refined_compliance(f, contact.result(f).in_contact ? c[f] : 0.0);
@@ -52,8 +55,11 @@ void BackgroundRefinement::work() {
       has_pending_ = false;
     }
     r_->update(working_);
+    gathered_.gather(*r_, working_.fingers, updates_.load(std::memory_order_relaxed) + 1);
     std::lock_guard<std::mutex> lock(m_);
     for (int f = 0; f < working_.fingers; ++f) compliance_[f] = r_->compliance(f);
+    std::swap(gathered_, ready_);
+    regions_ready_ = true;
     builds_.store(r_->builds(), std::memory_order_relaxed);
     updates_.fetch_add(1, std::memory_order_relaxed);
   }

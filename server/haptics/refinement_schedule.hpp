@@ -17,6 +17,7 @@
 
 #include "haptics/fingertip_contact.hpp"
 #include "haptics/local_refinement.hpp"
+#include "haptics/refined_regions.hpp"
 
 namespace hapticloth::haptics {
 
@@ -31,6 +32,11 @@ class RefinementSchedule {
   virtual std::uint64_t updates() const = 0;
   /// The updates run beside the steps (BackgroundRefinement), not within them.
   virtual bool beside_steps() const = 0;
+  /// The children as of the last update this thread has seen (a viewer's: cloth_state_t).
+  const RefinedRegions& regions() const { return regions_; }
+
+ protected:
+  RefinedRegions regions_;  // the simulation thread's
 };
 
 class InlineRefinement final : public RefinementSchedule {
@@ -68,6 +74,8 @@ class BackgroundRefinement final : public RefinementSchedule {
   RefinementInput pending_, working_;     // the next input (under m_), the worker's
   bool has_pending_ = false, stop_ = false;
   std::array<double, kMaxFingers> compliance_{};  // the worker's last (under m_)
+  RefinedRegions gathered_, ready_;               // the worker's; its last, for the step (under m_)
+  bool regions_ready_ = false;                    // under m_
   std::atomic<std::uint64_t> builds_{0}, updates_{0}, skipped_{0};
   std::thread worker_;
 };

@@ -119,6 +119,14 @@ void Session::run_realtime(double seconds) {
   stop();
 }
 
+void Session::observe_step() {
+  if (const RefinementSchedule* r = sim_->refinement(); r && r->regions().version != regions_seen_) {
+    regions_seen_ = r->regions().version;
+    for (auto* o : observers_) o->on_refined(r->regions());
+  }
+  for (auto* o : observers_) o->on_sim_step(sim_->last_snapshot());
+}
+
 // The simulation thread: a step per integrator dt on absolute deadlines, as fast as the step
 // allows when behind.
 void Session::sim_thread_loop(double t_start, const std::atomic<bool>& stop_flag) {
@@ -126,7 +134,7 @@ void Session::sim_thread_loop(double t_start, const std::atomic<bool>& stop_flag
   while (!stop_flag.load(std::memory_order_relaxed)) {
     const double now = mono_now() - t_start;
     sim_->step(now);
-    for (auto* o : observers_) o->on_sim_step(sim_->last_snapshot());
+    observe_step();
     next += dt_sim_;
     const double t = mono_now();
     if (next > t) {

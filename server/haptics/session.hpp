@@ -128,6 +128,9 @@ class Session {
   void start();
   void stop();
   void account_tick();
+  /// The observers see the step just taken: the refined children if they changed, then the
+  /// cloth (simulation thread).
+  void observe_step();
   /// A tick begun at `woke` and done at `done` missed `next` (the next deadline) if it ended
   /// after it, whatever made it late; it overran if its own compute (the loop and its
   /// observers) took longer than the period, which a late start alone never makes it do.
@@ -157,6 +160,7 @@ class Session {
   std::unique_ptr<SimWorker> sim_;
   std::unique_ptr<HapticLoop> loop_;
   std::vector<SessionObserver*> observers_;
+  std::uint64_t regions_seen_ = 0;  // RefinedRegions::version the observers last saw
   const std::atomic<bool>* stop_request_ = nullptr;
   SessionReport r_;
 };
@@ -177,7 +181,7 @@ void Session::run_stepped_late(double seconds, double sim_period, L&& late, F&& 
     const double now = k * hp + shift;
     if (k % every == 0) {
       sim_->step(now);
-      for (auto* o : observers_) o->on_sim_step(sim_->last_snapshot());
+      observe_step();
     }
     const auto t0 = std::chrono::steady_clock::now();
     loop_->tick(now);

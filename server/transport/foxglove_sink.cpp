@@ -246,16 +246,17 @@ void FoxgloveSink::take_topology(const hapticloth::cloth_topology_t& t) {
   vertices_ = static_cast<std::size_t>(t.num_vertices);
 }
 
-// Per vertex: the eq. 4 strain of largest magnitude of each of its triangles, averaged, on the
-// fixed scale.
-void FoxgloveSink::strain_colours(const std::vector<std::vector<float>>& x) {
-  const std::size_t nv = vertices_;
+// Per vertex of x from `first` on: the eq. 4 strain of largest magnitude of each of its
+// triangles (rest[i], skipped where degenerate[i]), averaged, on the fixed scale, into rgba.
+void FoxgloveSink::strain_colours(const std::vector<std::vector<float>>& x, std::size_t first,
+                                  const std::vector<cloth::ElementRest>& rest, const std::vector<bool>& degenerate) {
+  const std::size_t nv = x.size();
   sum_.assign(nv, 0.0);
   weight_.assign(nv, 0.0f);
   const auto at = [&](int v) { return cloth::Vec3(x[v][0], x[v][1], x[v][2]); };
-  for (std::size_t i = 0; i < rest_.size(); ++i) {
-    if (degenerate_[i]) continue;
-    const cloth::ElementRest& e = rest_[i];
+  for (std::size_t i = 0; i < rest.size(); ++i) {
+    if (degenerate[i]) continue;
+    const cloth::ElementRest& e = rest[i];
     const cloth::Strains s = cloth::element_strains(e, at(e.v[0]), at(e.v[1]), at(e.v[2]));
     double m = s.uu;
     if (std::abs(s.vv) > std::abs(m)) m = s.vv;
@@ -265,13 +266,53 @@ void FoxgloveSink::strain_colours(const std::vector<std::vector<float>>& x) {
       weight_[e.v[k]] += 1.0f;
     }
   }
-  rgba_.resize(4 * nv);
+  rgba_.resize(4 * (first + nv));
   for (std::size_t v = 0; v < nv; ++v) {
     const double strain = weight_[v] > 0 ? sum_[v] / weight_[v] : std::nan("");
     const std::array<double, 3> c = cloth::cool_warm(strain / kStrainRange);
-    for (int k = 0; k < 3; ++k) rgba_[4 * v + k] = static_cast<float>(c[k] / 255.0);
-    rgba_[4 * v + 3] = 1.0f;
+    for (int k = 0; k < 3; ++k) rgba_[4 * (first + v) + k] = static_cast<float>(c[k] / 255.0);
+    rgba_[4 * (first + v) + 3] = 1.0f;
   }
+}
+
+// The refined children (paper 4.2.2) in place of the global triangles they stand in for: their
+// vertices after the global ones, their triangles instead of the region's, coloured by their
+// own strains. False (and nothing added) if the fields do not make a mesh.
+bool FoxgloveSink::add_refined(const hapticloth::cloth_state_t& m) {
+  const std::size_t nv = m.refined_positions.size(), nt = m.refined_triangles.size();
+  if (nt == 0) return true;
+  child_rest_.resize(nt);
+  child_degenerate_.assign(nt, false);
+  for (std::size_t i = 0; i < nt; ++i) {
+    double uv[3][2];
+    for (int k = 0; k < 3; ++k) {
+      const int v = m.refined_triangles[i][k];
+      if (v < 0 || static_cast<std::size_t>(v) >= nv) return false;
+      for (int j = 0; j < 2; ++j) uv[k][j] = m.refined_weave_uv[i][k][j];
+    }
+    try {
+      child_rest_[i] = cloth::make_element(m.refined_triangles[i][0], m.refined_triangles[i][1],
+                                           m.refined_triangles[i][2], uv);
+    } catch (const std::invalid_argument&) {
+      child_degenerate_[i] = true;
+    }
+  }
+  for (const int t : m.refined_region)
+    if (t < 0 || static_cast<std::size_t>(t) >= hidden_.size()) return false;
+  for (const int t : m.refined_region) hidden_[t] = true;
+  std::size_t kept = 0;  // the global triangles left, then the children's
+  for (std::size_t t = 0; t < hidden_.size(); ++t) {
+    if (hidden_[t]) continue;
+    for (int k = 0; k < 3; ++k) tris_[3 * kept + k] = triangles_[3 * t + k];
+    ++kept;
+  }
+  tris_.resize(3 * kept);
+  for (std::size_t i = 0; i < nt; ++i)
+    for (int k = 0; k < 3; ++k) tris_.push_back(static_cast<std::uint32_t>(vertices_ + m.refined_triangles[i][k]));
+  for (std::size_t v = 0; v < nv; ++v)
+    for (int k = 0; k < 3; ++k) xyz_.push_back(m.refined_positions[v][k]);
+  strain_colours(m.refined_positions, vertices_, child_rest_, child_degenerate_);
+  return true;
 }
 
 void FoxgloveSink::cloth(const std::uint8_t* bytes, std::size_t len, std::uint64_t ns) {
@@ -284,9 +325,17 @@ void FoxgloveSink::cloth(const std::uint8_t* bytes, std::size_t len, std::uint64
   xyz_.resize(3 * vertices_);
   for (std::size_t v = 0; v < vertices_; ++v)
     for (int k = 0; k < 3; ++k) xyz_[3 * v + k] = m.positions[v][k];
-  strain_colours(m.positions);
-  hf_cloth(sink_, ns, xyz_.data(), rgba_.data(), static_cast<std::uint32_t>(vertices_), triangles_.data(),
-           static_cast<std::uint32_t>(triangles_.size() / 3));
+  strain_colours(m.positions, 0, rest_, degenerate_);
+  tris_ = triangles_;
+  hidden_.assign(triangles_.size() / 3, false);
+  if (!add_refined(m)) {  // the global cloth alone
+    ++undecodable_;
+    tris_ = triangles_;
+    xyz_.resize(3 * vertices_);
+    rgba_.resize(4 * vertices_);
+  }
+  hf_cloth(sink_, ns, xyz_.data(), rgba_.data(), static_cast<std::uint32_t>(xyz_.size() / 3), tris_.data(),
+           static_cast<std::uint32_t>(tris_.size() / 3));
   ++written_[Cloth];
 }
 

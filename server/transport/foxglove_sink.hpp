@@ -30,6 +30,7 @@
 struct HfSink;
 namespace hapticloth {
 class cloth_topology_t;
+class cloth_state_t;
 }
 
 namespace hapticloth::transport {
@@ -83,7 +84,9 @@ class FoxgloveSink {
   void haptics(const std::uint8_t* bytes, std::size_t len, std::uint64_t ns);
   void loop(const std::uint8_t* bytes, std::size_t len, std::uint64_t ns);
   void event(const std::uint8_t* bytes, std::size_t len, std::uint64_t ns);
-  void strain_colours(const std::vector<std::vector<float>>& x);
+  void strain_colours(const std::vector<std::vector<float>>& x, std::size_t first,
+                      const std::vector<cloth::ElementRest>& rest, const std::vector<bool>& degenerate);
+  bool add_refined(const hapticloth::cloth_state_t& m);
 
   HfSink* sink_ = nullptr;
   FoxgloveOptions opt_;
@@ -93,8 +96,12 @@ class FoxgloveSink {
   std::vector<cloth::ElementRest> rest_;
   std::vector<bool> degenerate_;
   std::size_t vertices_ = 0;
-  // Scratch of one cloth frame.
+  // Scratch of one cloth frame: the global cloth, then the refined children in place of the
+  // triangles they stand in for.
   std::vector<float> xyz_, rgba_, weight_;
+  std::vector<std::uint32_t> tris_;
+  std::vector<bool> hidden_, child_degenerate_;
+  std::vector<cloth::ElementRest> child_rest_;
   std::vector<double> sum_;
   std::array<std::uint64_t, kChannels> written_{};
   std::uint64_t undecodable_ = 0, before_topology_ = 0;

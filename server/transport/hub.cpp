@@ -44,6 +44,8 @@ std::string Hub::finish() {
 
 void Hub::on_sim_step(const haptics::ClothSnapshot& s) noexcept { loops_.put_cloth(s); }
 
+void Hub::on_refined(const haptics::RefinedRegions& r) noexcept { loops_.put_refined(r); }
+
 void Hub::on_haptic_tick(const haptics::HapticReport& r, const devices::DeviceState& state,
                          const devices::DeviceCommand& cmd) noexcept {
   loops_.put_tick(r, state, cmd);

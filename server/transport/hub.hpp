@@ -67,6 +67,7 @@ class Hub : public haptics::SessionObserver {
 
   // SessionObserver: real-time safe (copies into preallocated mailboxes).
   void on_sim_step(const haptics::ClothSnapshot& s) noexcept override;
+  void on_refined(const haptics::RefinedRegions& r) noexcept override;
   void on_haptic_tick(const haptics::HapticReport& r, const devices::DeviceState& state,
                       const devices::DeviceCommand& cmd) noexcept override;
   void on_loop_stats(const haptics::LoopStats& s) noexcept override;

@@ -86,6 +86,25 @@ void HubPublisher::publish_scene() {
   }
 }
 
+// The refined children under the fingertips (cloth_state_t's refined fields).
+void HubPublisher::fill_refined(const LoopMailboxes::ClothFrame& f) {
+  hapticloth::cloth_state_t& m = cloth_msg_;
+  m.num_refined_vertices = static_cast<int32_t>(f.refined_x.size());
+  m.num_refined_triangles = static_cast<int32_t>(f.refined_triangles.size());
+  m.num_refined_region = static_cast<int32_t>(f.refined_region.size());
+  m.refined_positions.resize(f.refined_x.size());
+  for (std::size_t i = 0; i < f.refined_x.size(); ++i)
+    m.refined_positions[i].assign(f.refined_x[i].begin(), f.refined_x[i].end());
+  m.refined_triangles.resize(f.refined_triangles.size());
+  m.refined_weave_uv.resize(f.refined_triangles.size());
+  for (std::size_t t = 0; t < f.refined_triangles.size(); ++t) {
+    m.refined_triangles[t].assign(f.refined_triangles[t].begin(), f.refined_triangles[t].end());
+    m.refined_weave_uv[t].resize(3);
+    for (int k = 0; k < 3; ++k) m.refined_weave_uv[t][k].assign(f.refined_uv[t][k].begin(), f.refined_uv[t][k].end());
+  }
+  m.refined_region.assign(f.refined_region.begin(), f.refined_region.end());
+}
+
 void HubPublisher::publish_cloth() {
   const LoopMailboxes::ClothFrame* f = loops_.take_cloth();
   if (!f || !out_.admit(Topic::Cloth)) return;
@@ -95,6 +114,7 @@ void HubPublisher::publish_cloth() {
   cloth_msg_.num_vertices = static_cast<int32_t>(f->x.size());
   cloth_msg_.positions.resize(f->x.size());
   for (std::size_t i = 0; i < f->x.size(); ++i) cloth_msg_.positions[i].assign(f->x[i].begin(), f->x[i].end());
+  fill_refined(*f);
   send_msg(Topic::Cloth, cloth_msg_);
 }
 

@@ -38,6 +38,7 @@ class HubPublisher {
   void publish_pending();
   void publish_scene();
   void publish_cloth();
+  void fill_refined(const LoopMailboxes::ClothFrame& f);
   void publish_haptics();
   void publish_stats();
   void publish_events();

@@ -23,6 +23,24 @@ LoopMailboxes::LoopMailboxes(std::size_t vertices, int fingers, double cloth_rat
       stats_(LoopSummary{}),
       samples_(kSamples) {}
 
+void LoopMailboxes::put_refined(const haptics::RefinedRegions& r) noexcept {
+  try {
+    refined_.refined_x.resize(r.x.size());
+    for (std::size_t i = 0; i < r.x.size(); ++i) copy3(refined_.refined_x[i], r.x[i]);
+    refined_.refined_triangles.assign(r.triangles.begin(), r.triangles.end());
+    refined_.refined_uv.resize(r.weave_uv.size());
+    for (std::size_t t = 0; t < r.weave_uv.size(); ++t)
+      for (int k = 0; k < 3; ++k)
+        refined_.refined_uv[t][k] = {static_cast<float>(r.weave_uv[t][k][0]), static_cast<float>(r.weave_uv[t][k][1])};
+    refined_.refined_region.assign(r.region.begin(), r.region.end());
+  } catch (const std::bad_alloc&) {  // the frames then show no refinement rather than stop the step
+    refined_.refined_x.clear();
+    refined_.refined_triangles.clear();
+    refined_.refined_uv.clear();
+    refined_.refined_region.clear();
+  }
+}
+
 void LoopMailboxes::put_cloth(const haptics::ClothSnapshot& s) noexcept {
   if (next_cloth_time_ >= 0.0 && s.time < next_cloth_time_ - 1e-9) return;
   next_cloth_time_ =
@@ -32,6 +50,17 @@ void LoopMailboxes::put_cloth(const haptics::ClothSnapshot& s) noexcept {
   f.time = s.time;
   f.step = s.step;
   for (std::size_t i = 0; i < s.x.size(); ++i) copy3(f.x[i], s.x[i]);
+  try {
+    f.refined_x = refined_.refined_x;  // vector copy-assignment keeps f's storage when it fits
+    f.refined_triangles = refined_.refined_triangles;
+    f.refined_uv = refined_.refined_uv;
+    f.refined_region = refined_.refined_region;
+  } catch (const std::bad_alloc&) {
+    f.refined_x.clear();
+    f.refined_triangles.clear();
+    f.refined_uv.clear();
+    f.refined_region.clear();
+  }
   cloth_.publish();
 }
 

@@ -18,11 +18,31 @@ namespace hapticloth::transport {
 
 class LoopMailboxes {
  public:
-  /// Cloth positions as published (float, the message's precision).
+  /// Cloth positions as published (float, the message's precision), with the refined children
+  /// under the fingertips as the simulation last gathered them (haptics::RefinedRegions).
   struct ClothFrame {
+    ClothFrame() { reserve_refined(); }
+    /// Copies keep the reserve (TripleBuffer copies its first frame into every slot).
+    ClothFrame(const ClothFrame& o)
+        : time(o.time), step(o.step), x(o.x), refined_x(o.refined_x), refined_triangles(o.refined_triangles),
+          refined_uv(o.refined_uv), refined_region(o.refined_region) {
+      reserve_refined();
+    }
+    ClothFrame& operator=(const ClothFrame&) = default;
+    /// Room for two children of the finest grading (docs/contact.md: up to 500 vertices each).
+    void reserve_refined() {
+      refined_x.reserve(1024);
+      refined_triangles.reserve(2048);
+      refined_uv.reserve(2048);
+      refined_region.reserve(128);
+    }
     double time = -1.0;
     std::uint64_t step = 0;
     std::vector<std::array<float, 3>> x;
+    std::vector<std::array<float, 3>> refined_x;
+    std::vector<std::array<std::int32_t, 3>> refined_triangles;
+    std::vector<std::array<std::array<float, 2>, 3>> refined_uv;
+    std::vector<std::int32_t> refined_region;
   };
   static constexpr std::size_t kSamples = 4096;  ///< haptic samples the ring holds (4 s at 1 kHz)
 
@@ -31,6 +51,9 @@ class LoopMailboxes {
 
   // The loops' side (one writer each: the simulation thread, the haptic thread).
   void put_cloth(const haptics::ClothSnapshot& s) noexcept;
+  /// The refined children the next cloth frames carry (simulation thread, as put_cloth). Their
+  /// storage is reserved for typical children and grows, off the haptic thread, for larger ones.
+  void put_refined(const haptics::RefinedRegions& r) noexcept;
   void put_tick(const haptics::HapticReport& r, const devices::DeviceState& state,
                 const devices::DeviceCommand& cmd) noexcept;
   void put_stats(const haptics::LoopStats& s) noexcept;
@@ -55,6 +78,7 @@ class LoopMailboxes {
   const double cloth_period_;
   devices::TripleBuffer<ClothFrame> cloth_;
   double next_cloth_time_ = -1.0;  // simulation thread only
+  ClothFrame refined_;             // simulation thread only: the refined fields the frames copy
   devices::TripleBuffer<LoopSummary> stats_;
   devices::SpscRing<HapticSample> samples_;
   // The gate starts stale (no device sample yet), and counts a trip on each fresh -> stale

@@ -107,6 +107,54 @@ TEST(LocalRefinement, MultiratePressOnCoarseMeshesMatchesMembraneTheory) {
     }
 }
 
+// What a viewer gets of the children (SessionObserver::on_refined, cloth_state_t's refined
+// fields): a press into the uniform 25 mm drum and back out. While pressed, the session shows a
+// child standing in for the touched triangles, deeper than the global mesh can dip (the dimple it
+// resolves), with every triangle indexing its own vertices; once the fingertip has left, none.
+TEST(LocalRefinement, AViewerSeesTheChildWhileTheFingertipPresses) {
+  struct Viewer : haptics::SessionObserver {
+    int calls = 0, shown = 0;
+    double deepest = 0.0, global_deepest = 0.0;
+    bool indexed = true;
+    haptics::RefinedRegions last;
+    const cloth::ClothState* cloth = nullptr;
+    void on_refined(const haptics::RefinedRegions& r) noexcept override {
+      ++calls;
+      last = r;
+      if (r.empty()) return;
+      ++shown;
+      for (const auto& t : r.triangles)
+        for (int v : t) indexed = indexed && v >= 0 && v < static_cast<int>(r.x.size());
+      for (const auto& x : r.x) deepest = std::min(deepest, x.z());
+      for (const auto& x : cloth->x) global_deepest = std::min(global_deepest, x.z());
+    }
+  };
+  test::DrumSpec spec;
+  spec.centre_edge = spec.rim_edge = 25e-3;
+  spec.refine = haptics::Refine::On;
+  test::MembraneDisc disc = test::membrane_disc(spec);
+  const double r = spec.drum.sphere_radius;
+  devices::Trajectory tr(2);
+  using Vec3 = Eigen::Vector3d;
+  tr.add(0, 0.0, Vec3(0, 0, r + 1e-3));
+  tr.add(0, 0.5, Vec3(0, 0, r - 3e-3));
+  tr.add(0, 1.0, Vec3(0, 0, r + 2e-3));
+  tr.add(0, 1.2, Vec3(0, 0, r + 2e-3));
+  tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));
+  test::TouchRig rig(std::move(disc.model), std::move(tr), disc.sc, disc.ic, disc.start, spec.solver);
+  Viewer v;
+  v.cloth = &rig.session->sim().state();
+  rig.session->add_observer(&v);
+  rig.session->run_stepped(1.2, 0.0, [](const haptics::HapticLoop&, const haptics::SimWorker&) {});
+  std::printf("viewer: %d updates of the children, %d showing one; deepest child vertex %.3f mm, global %.3f mm\n",
+              v.calls, v.shown, v.deepest * 1e3, v.global_deepest * 1e3);
+  EXPECT_GT(v.shown, 100);
+  EXPECT_TRUE(v.indexed);
+  EXPECT_LT(v.deepest, v.global_deepest - 0.3e-3);  // the child resolves the dimple the mesh cannot
+  EXPECT_TRUE(v.last.empty());
+  EXPECT_TRUE(v.last.region.empty());
+}
+
 // The child alone: the whole pre-stretched drum refined around its centre (its border is the
 // pinned rim), the fingertip pushed in with the exact solution's force at 1, 2 and 3 mm: the
 // child's depth is the exact depth.

@@ -141,6 +141,57 @@ def test_export_of_the_lcm_log_equals_the_recording(recorded_run, tmp_path):
     assert "not exported     HAPTICLOTH_TOPOLOGY" not in r.stdout
 
 
+def refining_scene(tmp_path: Path) -> Path:
+    """The main job's scene with local refinement on (haptics.refine = "on"): its 23 mm elements
+    do not resolve the 8 mm fingertip's contact patch, so every press has a child."""
+    scene = REPO / "tools" / "scenes" / "hanging_square.toml"
+    text = scene.read_text()
+    text = text.replace('material = "../materials/', f'material = "{REPO}/tools/materials/')
+    text = text.replace('script = "touch_stroke_pinch.toml"', f'script = "{REPO}/tools/scenes/touch_stroke_pinch.toml"')
+    text = text.replace("[haptics]\n", '[haptics]\nrefine = "on"\n')
+    out = tmp_path / "hanging_square_refined.toml"
+    out.write_text(text)
+    return out
+
+
+def test_recording_shows_the_refined_cloth_under_the_fingertip(tmp_path):
+    """With local refinement on, /cloth draws each child mesh in place of the global triangles it
+    stands for: frames with more points than the mesh, fewer global triangles, every index a
+    point of the frame, and the child's points around the fingertip touching at that time."""
+    mcap = tmp_path / "refined.mcap"
+    r = subprocess.run([str(program("hapticloth-server")), "--scene", str(refining_scene(tmp_path)), "--fast",
+                        "--duration", "3.5", "--no-zenoh", "--no-lcm-log", "--mcap", str(mcap)],
+                       capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "refine" in r.stdout and "on" in r.stdout
+    _, messages = read_mcap(mcap)
+    proxies = [(t, [e.spheres[0].pose.position for e in decode(topic, d).entities])
+               for topic, t, d in messages if topic == "/fingertips"]
+    refined = 0
+    for topic, t, data in messages:
+        if topic != "/cloth":
+            continue
+        (mesh,) = decode(topic, data).entities[0].triangles
+        n = len(mesh.points)
+        assert len(mesh.colors) == n and max(mesh.indices) < n
+        if n == VERTICES:
+            assert len(mesh.indices) == 3 * TRIANGLES
+            continue
+        refined += 1
+        tris = [mesh.indices[i:i + 3] for i in range(0, len(mesh.indices), 3)]
+        global_tris = sum(1 for tri in tris if max(tri) < VERTICES)
+        assert 0 < global_tris < TRIANGLES
+        assert all(min(tri) >= VERTICES for tri in tris if max(tri) >= VERTICES)  # a child's own
+        # Around finger 0's proxy (the nearest /fingertips message): the child touches it (its
+        # closest point no farther than the fingertip's radius and a millimetre), and its region
+        # (the triangles with a corner within 1.5 of the touched triangle's longest edges, the
+        # 32 mm diagonal, so within 2.5 diagonals) holds every point.
+        _, (p0, _) = min(proxies, key=lambda q: abs(q[0] - t))
+        dist = [((q.x - p0.x) ** 2 + (q.y - p0.y) ** 2 + (q.z - p0.z) ** 2) ** 0.5 for q in mesh.points[VERTICES:]]
+        assert min(dist) < 0.009 and max(dist) < 2.5 * 0.0322 + 0.008, (min(dist), max(dist))
+    assert refined > 20, refined
+
+
 def test_recording_reads_back_after_sigkill(tmp_path):
     """A server killed with SIGKILL leaves an MCAP file without its summary; everything up to
     its last finished chunk reads back with the stream reader and decodes."""

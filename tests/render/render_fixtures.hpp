@@ -220,7 +220,7 @@ inline hapticloth::cloth_topology_t topology_msg(const Scene& s) {
 }
 
 inline hapticloth::cloth_state_t state_msg(const Scene& s, double time, float stretch) {
-  hapticloth::cloth_state_t m;
+  hapticloth::cloth_state_t m{};
   m.time = time;
   m.step = std::lround(time * 1000);
   m.num_vertices = static_cast<int>(s.rest_positions.size());

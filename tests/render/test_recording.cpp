@@ -63,5 +63,40 @@ TEST(Log, MissingTopologyIsAClearError) {
   fs::remove(path);
 }
 
+TEST(Log, ReadsTheRefinedChildrenAndDropsAStateWhoseRegionTheMeshLacks) {
+  const Scene s = flat();
+  const std::string path = temp_path("hapticloth_test_render_refined.lcm");
+  const auto with_child = [&](double time, int region) {
+    hapticloth::cloth_state_t m = state_msg(s, time, 1.0f);
+    m.num_refined_vertices = 3;
+    m.num_refined_triangles = 1;
+    m.num_refined_region = 1;
+    m.refined_positions = {{0.0f, 0.0f, 0.0f}, {0.01f, 0.0f, 0.0f}, {0.0f, 0.01f, -0.002f}};
+    m.refined_triangles = {{0, 1, 2}};
+    m.refined_weave_uv = {{{0.0f, 0.0f}, {0.01f, 0.0f}, {0.0f, 0.01f}}};
+    m.refined_region = {region};
+    return m;
+  };
+  {
+    LogWriter w(path);
+    w.write("HAPTICLOTH_TOPOLOGY", topology_msg(s));
+    w.write("HAPTICLOTH_CLOTH", with_child(0.1, 7));
+    w.write("HAPTICLOTH_CLOTH", with_child(0.2, 288));  // flat() has 288 triangles
+    hapticloth::cloth_state_t bad = with_child(0.3, 7);
+    bad.refined_triangles[0][2] = 3;  // a child vertex it lacks: not a mesh
+    w.write("HAPTICLOTH_CLOTH", bad);
+  }
+  const Recording rec = read_lcm_log(path);
+  ASSERT_EQ(rec.frames.size(), 1u);
+  EXPECT_EQ(rec.dropped, 1u);
+  const RefinedFrame& r = rec.frames[0].refined;
+  ASSERT_EQ(r.positions.size(), 3u);
+  EXPECT_FLOAT_EQ(r.positions[2].z(), -0.002f);
+  ASSERT_EQ(r.mesh.triangles.size(), 1u);
+  EXPECT_EQ(r.mesh.triangles[0], (std::array<int, 3>{0, 1, 2}));
+  EXPECT_FLOAT_EQ(r.mesh.weave_uv[0][1][0], 0.01f);
+  EXPECT_EQ(r.region, std::vector<int>{7});
+  fs::remove(path);
+}
 
 }  // namespace

@@ -95,4 +95,84 @@ TEST(Render, FingertipIsDrawnWhereItProjects) {
 }
 
 
+// A refined child (paper 4.2.2) of flat()'s quad (5, 5): a 2 x 2-quad grid over the quad's
+// rest square, placed by `place` from its rest point; it stands in for the quad's two triangles.
+template <class F>
+RefinedFrame child_of_quad(const Scene& s, F place) {
+  const float h = 0.3f / 12, x0 = 5 * h, y0 = 5 * h;
+  RefinedFrame r;
+  r.mesh = grid(2, 2, h, h, [&](double u, double v) { return place(Vec3f(x0 + float(u), y0 + float(v), 0.0f)); });
+  r.positions = r.mesh.rest_positions;
+  r.region = {2 * (5 * 12 + 5), 2 * (5 * 12 + 5) + 1};
+  EXPECT_EQ(s.triangles.size(), 288u);
+  return r;
+}
+
+TEST(Render, TheRefinedChildIsDrawnInPlaceOfTheTrianglesItStandsFor) {
+  const Scene s = flat();
+  Renderer r(240, 240, 1);
+  Style st = bare_style();
+  st.color = ColorMode::Weft;
+  st.strain_range = 0.05;
+  st.background = {0, 0, 0};
+  st.refined_edges = false;
+  const ClothFrame rest = rest_frame(s);
+  const Viewport vp = r.scene_viewport(st);
+  const Camera cam = frame_points(rest.positions, 35.0, static_cast<double>(vp.width) / vp.height);
+  const Projection P = r.projection(cam, st, rest.positions);
+  // Inside one child triangle, off its edges: a quarter cell right of the quad's centre, and a
+  // tenth below.
+  const float h = 0.3f / 12;
+  const Vec3f probe(5.75f * h, 5.4f * h, 0.0f);
+  const auto pixel = [&](const ClothFrame& f) {
+    const Eigen::Vector2d q = P.to_pixel(probe.cast<double>());
+    return r.render(s, f, nullptr, cam, st).at(static_cast<int>(q.x()), static_cast<int>(q.y()));
+  };
+  const Rgb grey = pixel(rest);
+  EXPECT_LT(std::abs(grey[0] - grey[2]), 15);
+  // The child stretched 5% along the weft about the quad's centre: red where it is.
+  ClothFrame stretched = rest;
+  const Vec3f centre(5.5f * h, 5.5f * h, 0.0f);
+  stretched.refined = child_of_quad(s, [&](Vec3f p) { return Vec3f(centre.x() + 1.05f * (p.x() - centre.x()), p.y(), 0.0f); });
+  const Rgb red = pixel(stretched);
+  EXPECT_GT(red[0] - red[2], 60) << int(red[0]) << " " << int(red[2]);
+  // Moved 10 m away, the child leaves a hole: the global triangles it stands for are not drawn.
+  ClothFrame away = rest;
+  away.refined = child_of_quad(s, [](Vec3f p) { return Vec3f(p.x() + 10.0f, p.y(), p.z()); });
+  const Rgb hole = pixel(away);
+  EXPECT_EQ(hole, st.background);
+  // A region naming a triangle the mesh lacks is refused, not drawn.
+  away.refined.region.push_back(288);
+  EXPECT_THROW(r.render(s, away, nullptr, cam, st), std::invalid_argument);
+}
+
+TEST(Render, TheRefinedChildsEdgesAreDrawn) {
+  const Scene s = flat();
+  Renderer r(240, 240, 2);
+  Style st = bare_style();
+  st.color = ColorMode::Weft;  // at rest a uniform light grey
+  st.background = {0, 0, 0};
+  ClothFrame f = rest_frame(s);
+  f.refined = child_of_quad(s, [](Vec3f p) { return p; });
+  const Viewport vp = r.scene_viewport(st);
+  const Camera cam = frame_points(f.positions, 35.0, static_cast<double>(vp.width) / vp.height);
+  const Projection P = r.projection(cam, st, f.positions);
+  // Along the child's middle edge (u at the quad's centre), the edge line is darker than the
+  // same pixels drawn without it.
+  const float h = 0.3f / 12;
+  const auto column_sum = [&](const Image& img) {
+    long sum = 0;
+    for (int k = 1; k < 10; ++k) {
+      const Eigen::Vector2d q = P.to_pixel(Vec3f(5.5f * h, (5.0f + 0.1f * k) * h, 0.0f).cast<double>());
+      const Rgb c = img.at(static_cast<int>(std::lround(q.x())), static_cast<int>(q.y()));
+      sum += c[0] + c[1] + c[2];
+    }
+    return sum;
+  };
+  const long with = column_sum(r.render(s, f, nullptr, cam, st));
+  st.refined_edges = false;
+  const long without = column_sum(r.render(s, f, nullptr, cam, st));
+  EXPECT_LT(with, 0.8 * without) << with << " " << without;
+}
+
 }  // namespace

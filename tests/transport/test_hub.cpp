@@ -138,6 +138,13 @@ TEST(Hub, PublishesStateToAZenohSubscriber) {
   Collector<hapticloth::cloth_state_t> cloth(client, "hapticloth/test/cloth");
   Collector<hapticloth::haptic_state_t> haptic(client, "hapticloth/test/haptics");
   Collector<hapticloth::loop_stats_t> stats(client, "hapticloth/test/stats");
+  haptics::RefinedRegions child;  // one child triangle standing in for global triangle 1
+  child.version = 1;
+  child.x = {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1e-3, 0, 0), Eigen::Vector3d(0, 1e-3, -2e-3)};
+  child.triangles = {{0, 1, 2}};
+  child.weave_uv = {{{{0.0, 0.0}, {1e-3, 0.0}, {0.0, 1e-3}}}};
+  child.region = {1};
+  hub.on_refined(child);
 
   // Feed the observer until the subscriptions have reached the Hub (bounded).
   std::uint64_t tick = 0;
@@ -168,6 +175,13 @@ TEST(Hub, PublishesStateToAZenohSubscriber) {
     ASSERT_EQ(m.num_vertices, 4);
     EXPECT_FLOAT_EQ(m.positions[3][1], 6.0f);
     EXPECT_GT(m.utime, 0);
+    ASSERT_EQ(m.num_refined_vertices, 3);
+    ASSERT_EQ(m.num_refined_triangles, 1);
+    ASSERT_EQ(m.num_refined_region, 1);
+    EXPECT_FLOAT_EQ(m.refined_positions[2][2], -2e-3f);
+    EXPECT_EQ(m.refined_triangles[0], (std::vector<int32_t>{0, 1, 2}));
+    EXPECT_FLOAT_EQ(m.refined_weave_uv[0][2][1], 1e-3f);
+    EXPECT_EQ(m.refined_region[0], 1);
   }
   {
     std::lock_guard<std::mutex> lock(haptic.mu);

@@ -82,5 +82,64 @@ TEST(LoopMailboxes, TheLoopsSideDoesNotAllocate) {
   EXPECT_EQ(guard.count(), 0u);
 }
 
+// Two children of `n` vertices each, in a fan around their first vertex.
+haptics::RefinedRegions two_children(int n) {
+  haptics::RefinedRegions r;
+  r.version = 1;
+  for (int c = 0; c < 2; ++c) {
+    const int first = static_cast<int>(r.x.size());
+    for (int i = 0; i < n; ++i) r.x.push_back(Eigen::Vector3d(c, 1e-3 * i, 0.0));
+    for (int i = 1; i + 1 < n; ++i) {
+      r.triangles.push_back({first, first + i, first + i + 1});
+      r.weave_uv.push_back({{{0.0, 0.0}, {1e-3 * i, 0.0}, {1e-3 * i, 1e-3}}});
+    }
+    r.region.push_back(10 * c);
+  }
+  return r;
+}
+
+TEST(LoopMailboxes, TheRefinedChildrenTravelWithTheNextClothFrames) {
+  LoopMailboxes m(3, 2, 1000.0);
+  haptics::ClothSnapshot s;
+  s.resize(3);
+  const haptics::RefinedRegions r = two_children(5);
+  m.put_refined(r);
+  for (int k = 0; k < 2; ++k) {  // every frame carries the children until they change
+    s.time = k * 1e-3;
+    m.put_cloth(s);
+    const LoopMailboxes::ClothFrame* f = m.take_cloth();
+    ASSERT_NE(f, nullptr);
+    ASSERT_EQ(f->refined_x.size(), 10u);
+    ASSERT_EQ(f->refined_triangles.size(), 6u);
+    ASSERT_EQ(f->refined_uv.size(), 6u);
+    EXPECT_EQ(f->refined_region, (std::vector<std::int32_t>{0, 10}));
+    EXPECT_FLOAT_EQ(f->refined_x[7][1], 2e-3f);
+    EXPECT_EQ(f->refined_triangles[3], (std::array<std::int32_t, 3>{5, 6, 7}));  // the second child's
+    EXPECT_FLOAT_EQ(f->refined_uv[4][2][0], 2e-3f);
+  }
+  m.put_refined(haptics::RefinedRegions{});  // the finger let go: the children are gone
+  s.time = 2e-3;
+  m.put_cloth(s);
+  const LoopMailboxes::ClothFrame* f = m.take_cloth();
+  ASSERT_NE(f, nullptr);
+  EXPECT_TRUE(f->refined_x.empty());
+  EXPECT_TRUE(f->refined_triangles.empty());
+  EXPECT_TRUE(f->refined_region.empty());
+}
+
+TEST(LoopMailboxes, RefinedChildrenWithinTheReserveDoNotAllocate) {
+  LoopMailboxes m(100, 2, 60.0);
+  haptics::ClothSnapshot s;
+  s.resize(100);
+  const haptics::RefinedRegions big = two_children(400), small = two_children(50);
+  test::AllocationGuard guard;
+  for (int k = 0; k < 300; ++k) {
+    m.put_refined(k % 2 ? big : small);
+    s.time = k * 1e-2;
+    m.put_cloth(s);
+  }
+  EXPECT_EQ(guard.count(), 0u);
+}
+
 }  // namespace
 }  // namespace hapticloth::transport
