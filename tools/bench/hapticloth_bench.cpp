@@ -162,6 +162,11 @@ int main(int argc, char** argv) {
                                      "play the scene's [device] script from the cloth at rest (its preroll), directly "
                                      "coupled on the stepped clock: the step's time by fingertips in contact");
   script_flag->excludes(pinch_flag);
+  std::string refine;  // step --script / --pinch and haptic: overrides haptics.refine
+  step->add_option("--refine", refine,
+                   "--script, --pinch: local refinement under the fingertips, auto, on or off (default: the "
+                   "scene's haptics.refine)")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
 
   auto* haptic = cli.add_subcommand(
       "haptic", "the 1 kHz haptic loop in real time with the mock device and the global "
@@ -172,6 +177,9 @@ int main(int argc, char** argv) {
   haptic->add_option("--duration", haptic_duration, "s in real time (default 10)")
       ->check(opts::positive(3600.0, "s"));
   haptic->add_flag("--json", json, "one JSON object on stdout");
+  haptic->add_option("--refine", refine,
+                     "local refinement under the fingertips, auto, on or off (default: the scene's haptics.refine)")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
   int subscribers_help = 0;  // handled before parsing (main's first lines): listed for --help
   haptic->add_option("--subscribers", subscribers_help,
                      "N subscribers (half zenoh, half LCM) at a 120 Hz cloth rate: the period error "
@@ -260,9 +268,20 @@ int main(int argc, char** argv) {
   try {
     for (const JsonBenchmark& b : json_benchmarks)
       if (*b.command) return finish(b.run(), json, b.plot ? png : "");
+    // --refine: as the scene key haptics.refine would set it (and refused where the key is).
+    const auto apply_refine = [&](app::Scene& sc) {
+      if (refine.empty()) return;
+      sc.haptics.coupling.refine = refine == "on" ? haptics::Refine::On : refine == "off" ? haptics::Refine::Off
+                                                                                          : haptics::Refine::Auto;
+      if (sc.haptics.coupling.refine == haptics::Refine::On && sc.rendering == "multirate" &&
+          sc.multirate_model == haptics::LocalModel::Patch)
+        throw std::invalid_argument("--refine on: scene '" + sc.name + "' renders with the patch model, which "
+                                    "renders from its own subdivided patch");
+    };
     if (*haptic) {
       app::Scene scene = app::load_scene(haptic_scene);
       if (!scene.has_device) throw std::runtime_error(haptic_scene + ": no [device] table");
+      apply_refine(scene);
       app::ServeOptions so;
       so.duration = haptic_duration;
       so.realtime = true;
@@ -303,6 +322,7 @@ int main(int argc, char** argv) {
       scene.integrator.simd = level;
     }
     scene.integrator.validate();
+    apply_refine(scene);
     if (script) {
       std::cout << bench::script_step(scene).dump(json ? -1 : 1) << "\n";
       return 0;

@@ -85,7 +85,12 @@ json script_step(const app::Scene& scene) {
           {"contact_revisions", rep.contact_revisions},
           {"contact_settles", rep.contact_settles},
           {"contact_confirmations", rep.contact_confirmations},
-          {"max_penetration_mm", rep.max_penetration * 1e3}};
+          {"max_penetration_mm", rep.max_penetration * 1e3},
+          // Local refinement under the fingertips (haptics.refine, step --refine): whether the
+          // session made one, and its children and updates (within the steps: stepped clock).
+          {"refinement", {{"on", rig.session->sim().refinement() != nullptr},
+                          {"builds", rep.refinement_builds},
+                          {"updates", rep.refinement_updates}}}};
 }
 
 }  // namespace hapticloth::bench
