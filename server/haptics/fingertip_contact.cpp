@@ -618,9 +618,12 @@ void FingertipContact::end_step(const cloth::ClothState& s) {
     const double nn = nsum.norm();
     r.normal = nn > 0.0 ? Vec3(-nsum / nn) : Vec3::Zero();
     r.contact = fpos > 0.0 ? Vec3(csum / fpos) : P.x;
-    // With local refinement the fingertip sits deeper than the global proxy by the compliance
-    // the global mesh lacks (in series with the coupling): c (F . n) along -n.
-    r.proxy = P.x - refined_c_[f] * std::max(r.force.dot(r.normal), 0.0) * r.normal;
+    // With local refinement the fingertip sits beyond the global proxy by the compliance the
+    // global mesh lacks, in series with the coupling: the step solved the proxy with the spring
+    // 1 / (1/k + c), so the fingertip is where the scene's spring k alone carries the force F,
+    // c F beyond the proxy (along -n in a frictionless press). Reported there, the coupling's
+    // spring k (proxy - target) is F, as the passivity controller's energy balance needs.
+    r.proxy = P.x - refined_c_[f] * r.force;
     r.penetration = exact_penetration(f, s.x, P.x);
     max_pen_ = std::max(max_pen_, r.penetration);
     samples_in_contact_ += r.points;

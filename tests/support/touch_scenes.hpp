@@ -330,6 +330,10 @@ struct StrokeSample {
   double normal = 0.0;  ///< N, the rendered force's vertical part
   double along = 0.0;   ///< N, its part along the stroke (+x)
   double reference = 0.0;  ///< N, the exact force at that depth and offset (off_centre_force)
+  /// N: the rendered force along the contact's shaded normal, and its magnitude across it
+  /// (friction), with whether every contact point slides (FingerReport::slipping).
+  double contact_normal = 0.0, tangential = 0.0;
+  bool slipping = false;
   double error() const { return normal / reference - 1.0; }
 };
 
@@ -359,6 +363,9 @@ inline std::vector<StrokeSample> stroke_drum(const StrokeSpec& spec) {
     s.normal = f.force.z();
     s.along = f.force.x();
     s.reference = off_centre_force(d, s.depth, std::abs(f.proxy.x()));
+    s.contact_normal = f.force.dot(f.normal);
+    s.tangential = (f.force - s.contact_normal * f.normal).norm();
+    s.slipping = f.slipping;
     out.push_back(s);
   });
   return out;
