@@ -36,9 +36,11 @@ struct RefinementParams {
 };
 
 /// Whether to refine where the global mesh does not resolve the contact patch. Auto: on the
-/// multirate path's response model, whose global step leaves the simulation thread time for the
-/// children (0.3-1 ms a settle), and off with direct coupling, whose whole step must fit in the
-/// 1 ms haptic period (the main job's step p99 went from 0.45 to 4.8 ms: docs/contact.md).
+/// multirate path's response model (its energy bound keeps the rendering passive whatever the
+/// compliance does: haptics/energy_bound.hpp), and off with direct coupling: the child is a membrane
+/// (eqs. 3-5, no bending), and where the cloth is nearly slack (a hanging cloth, across) it is
+/// far softer than the fabric, which moved the main job's pinch onset 3.4 mm through the cloth
+/// in 7 ms and woke the passivity controller (docs/contact.md).
 enum class Refine { Auto, On, Off };
 inline const char* to_string(Refine r) { return r == Refine::Auto ? "auto" : r == Refine::On ? "on" : "off"; }
 /// `multirate`: the response model renders between global steps (else direct coupling).
