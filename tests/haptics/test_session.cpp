@@ -322,7 +322,10 @@ cloth::ClothModel flat_square(int quads) {
 // The cloth's own time against the session's (SessionReport::cloth_time): on the stepped clock
 // the cloth steps with the ticks and keeps pace; in real time a step far slower than its dt
 // (CHOLMOD on a 4050-triangle cloth: about 10 ms a 1 ms step) leaves the cloth in slow motion
-// against the hand, and the summary says how slow. A small cloth keeps pace in real time.
+// against the hand, and the summary says how slow. A small cloth in real time reports the same
+// accounting (whether it keeps pace is the machine's figure: hapticloth-bench haptic prints
+// cloth_time_ratio beside the platform timer; asserted here it failed when the platform woke
+// the simulation thread late, 0.78 in a CI run of 2026-11-29).
 TEST(Haptics, ReportsTheClothsTimeAgainstTheSessions) {
   const auto away = one_finger({{0.0, Vec3(0.15, 0.15, 0.2)}});  // touches nothing
   haptics::SessionConfig sc;
@@ -353,7 +356,10 @@ TEST(Haptics, ReportsTheClothsTimeAgainstTheSessions) {
   {
     auto r = rig(6);
     r->session->run_realtime(0.3);
-    EXPECT_GT(r->session->report().cloth_time_ratio(), 0.8) << r->session->report().to_text();
+    const auto rep = r->session->report();
+    EXPECT_GT(rep.sim_steps, 0u);
+    EXPECT_NEAR(rep.cloth_time, 1e-3 * static_cast<double>(rep.sim_steps), 1e-9);
+    EXPECT_NEAR(rep.cloth_time_ratio(), rep.cloth_time / rep.sim_time, 1e-12) << rep.to_text();
   }
 }
 
