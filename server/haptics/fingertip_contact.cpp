@@ -1,6 +1,8 @@
 #include "haptics/fingertip_contact.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <iterator>
 #include <limits>
@@ -189,11 +191,7 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
       q.id = first_[t] + k;
       q.tri = t;
       q.w = w;
-      q.n = (x - p) / d;
-      q.depth0 = depth;
-      linearize_pressure(q);
-      q.x0 = x;
-      q.anchor = x - p;
+      if (!place(q, x, p, short_steps_ ? p : proxy_at)) return;
       while (j < F.prev.size() && F.prev[j].id < q.id) ++j;
       if (j < F.prev.size() && F.prev[j].id == q.id) {  // a contact that persists: its friction state
         q.anchor = F.prev[j].anchor;
@@ -219,6 +217,29 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
 // path's long steps keep the linear law: a sample pressed deeper within a 20-40 ms step is
 // held by the stiffness at its start, and with the secant of the stiffening law the 40 ms stroke
 // cell of the stability map went 3.7 mm into a fingertip (2 mm allowed).
+// A contact's geometry for the step, from its point x and the proxy p0 at the start. The
+// penalty spring acts across the sphere's tangent plane where the proxy is expected at the end
+// of the step (at): normal n = (x - at) / |x - at|, and the depth at the start measured along
+// it, depth0 = r - n . (x - p0), so the spring's depth depth0 - n . (dx - dp) is that plane's
+// (the end state's geometry, as backward Euler takes its forces, eq. 8). Linearized about the
+// start instead, a proxy that slides s over the step is pushed back by F s / r, its normals
+// pointing from where it was (a 20 ms global step of a 30 mm/s stroke: 10% of the normal
+// force). Friction keeps the start's tangent plane nt, where its anchor was taken
+// (decide_friction, revise_friction): moved with the normal, the 25 Hz stroke's friction
+// chattered. Returns false where the point is the sphere's centre (no normal).
+bool FingertipContact::place(Sample& q, const Vec3& x, const Vec3& p0, const Vec3& at) const {
+  const double d = (x - at).norm();
+  if (d < 1e-12) return false;
+  q.n = (x - at) / d;
+  const double d0 = (x - p0).norm();
+  q.nt = d0 > 1e-12 ? Vec3((x - p0) / d0) : q.n;
+  q.depth0 = p_.radius - q.n.dot(x - p0);
+  linearize_pressure(q);
+  q.x0 = x;
+  q.anchor = x - p0;
+  return true;
+}
+
 void FingertipContact::linearize_pressure(Sample& q) const {
   const double kw = p_.pressure_stiffness * q.w, d = std::max(q.depth0, 0.0);
   q.kn = short_steps_ ? kw * (1.0 + d / p_.stiffening_depth) : kw;
@@ -247,7 +268,7 @@ void FingertipContact::make_spring(int f, const Sample& q, cloth::PointSpring& s
     sp.f += q.slide;
     return;
   }
-  const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
+  const Mat3 Pt = Mat3::Identity() - q.nt * q.nt.transpose();
   sp.f -= k * (Pt * (q.x0 - p0_[f] - q.anchor));
   sp.K += k * Pt;
 }
@@ -255,7 +276,7 @@ void FingertipContact::make_spring(int f, const Sample& q, cloth::PointSpring& s
 // Stick or slide at the start of the step: the stick spring's force against mu f_n.
 void FingertipContact::decide_friction(int f, Sample& q) const {
   const double k = p_.pressure_stiffness * q.w;
-  const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
+  const Mat3 Pt = Mat3::Identity() - q.nt * q.nt.transpose();
   const Vec3 ft = -k * (Pt * (q.x0 - p0_[f] - q.anchor));
   const double lim = p_.friction * std::max(q.f0, 0.0);
   const double ftn = ft.norm();
@@ -281,7 +302,7 @@ double FingertipContact::revise_friction(Sample& q, const Vec3& p0, const Vec3& 
   const double lim = p_.friction * std::max(normal_at_end(q, rel_step), 0.0);
   const double tol = 5e-3 * lim + 1e-9;
   if (!q.sliding) {
-    const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
+    const Mat3 Pt = Mat3::Identity() - q.nt * q.nt.transpose();
     const Vec3 ft = -k * (Pt * (q.x0 - p0 + rel_step - q.anchor));
     const double ftn = ft.norm();
     if (ftn <= lim + tol) return 0.0;
@@ -292,7 +313,7 @@ double FingertipContact::revise_friction(Sample& q, const Vec3& p0, const Vec3& 
   // Friction never drives the slide: if the point moved along the friction force relative to
   // the sphere, the contact sticks (the stick spring starting from the sliding force), so
   // the direction does not flip from step to step.
-  const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
+  const Mat3 Pt = Mat3::Identity() - q.nt * q.nt.transpose();
   const Vec3 slip = Pt * rel_step;
   if (!defer && slip.dot(q.slide) > 0.0) {
     q.sliding = false;
@@ -343,7 +364,8 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
       seen_[f] = false;
       continue;
     }
-    if (!seen_[f]) {  // the first sample, or back after an absence: the proxy starts at the fingertip
+    const bool first = !seen_[f];
+    if (first) {  // the first sample, or back after an absence: the proxy starts at the fingertip
       P.x = in[f].position;
       last_disp_[f].setZero();
       seen_[f] = true;
@@ -351,9 +373,22 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
     p0_[f] = P.x;
     set_coupling_target(P, in[f]);
     P.damping = p_.coupling_damping;
-    find_samples(f, s, P.x + last_disp_[f]);
+    find_samples(f, s, expected_proxy(f, first));
   }
   rebuild_springs();
+}
+
+// Where proxy f is expected at the end of the step (after set_coupling_target). In a short step
+// (direct coupling, 1 ms) it moves a few hundredths of a millimetre: as in the last step. A long
+// step of the multirate path moves it as its target moved since the last step (the massless
+// proxy follows the device; exact for a steady stroke): its own last displacement is no guide
+// there, as a contact that lets go moves it millimetres in one long step, and a prediction that
+// far off puts the contacts' normals (place) on the wrong side.
+Vec3 FingertipContact::expected_proxy(int f, bool first) {
+  const cloth::ProxyNode& P = integ_.proxies()[f];
+  const Vec3 moved = first ? Vec3::Zero() : Vec3(P.target - last_target_[f]);
+  last_target_[f] = P.target;
+  return P.x + (short_steps_ ? last_disp_[f] : moved);
 }
 
 // The refined compliance moves towards the refinement's latest at most as fast as it moves the
@@ -414,17 +449,10 @@ bool FingertipContact::add_contacts(int f, const std::vector<Vec3>& x_new, const
         rejoin(F.now.back(), x1 - point(s0_->x, t, q.b) - (p1 - p0));
         return;
       }
-      const Vec3 x = point(s0_->x, t, q.b);
-      const double d = (x - p0).norm();
-      if (d < 1e-12) return;
       q.id = id;
       q.tri = t;
       q.w = w;
-      q.n = (x - p0) / d;
-      q.depth0 = p_.radius - d;
-      linearize_pressure(q);
-      q.x0 = x;
-      q.anchor = x - p0;
+      if (!place(q, point(s0_->x, t, q.b), p0, short_steps_ ? p0 : p1)) return;
       decide_friction(f, q);
       F.now.push_back(q);
     });
@@ -601,7 +629,7 @@ void FingertipContact::end_step(const cloth::ClothState& s) {
       // Coulomb return mapping at the end state: a stretched stick spring beyond mu f_n slides
       // its anchor back onto the friction cone.
       const double k = p_.pressure_stiffness * q.w;
-      const Mat3 Pt = Mat3::Identity() - q.n * q.n.transpose();
+      const Mat3 Pt = Mat3::Identity() - q.nt * q.nt.transpose();
       const Vec3 rel = x1 - P.x;
       const Vec3 d = Pt * (rel - q.anchor);
       const double lim = p_.friction * std::max(fn, 0.0);
@@ -624,6 +652,10 @@ void FingertipContact::end_step(const cloth::ClothState& s) {
     // c F beyond the proxy (along -n in a frictionless press). Reported there, the coupling's
     // spring k (proxy - target) is F, as the passivity controller's energy balance needs.
     r.proxy = P.x - refined_c_[f] * r.force;
+    if (std::getenv("DBGC") && !short_steps_ && f == 0) {
+      int slip = 0; for (auto& q : F.now) slip += !q.sliding;
+      std::fprintf(stderr, "STEP P.x %.5f %.5f disp %.5f tgt %.5f pts %d slip %d F %.4f %.4f %.4f n %.3f %.3f %.3f\n", P.x.x(), P.x.z(), P.displacement.x(), P.target.x(), r.points, slip, r.force.x(), r.force.y(), r.force.z(), r.normal.x(), r.normal.y(), r.normal.z());
+    }
     r.penetration = exact_penetration(f, s.x, P.x);
     max_pen_ = std::max(max_pen_, r.penetration);
     samples_in_contact_ += r.points;

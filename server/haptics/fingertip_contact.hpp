@@ -87,7 +87,8 @@ class FingertipContact final : public cloth::StepContacts {
     int tri = 0;
     double b[3] = {0, 0, 0};
     double w = 0.0;                // area, m^2
-    Vec3 n = Vec3::Zero();         // unit normal from the sphere centre, at the start
+    Vec3 n = Vec3::Zero();         // unit normal of the spring: from the sphere's expected end (place)
+    Vec3 nt = Vec3::Zero();        // unit normal of the friction plane: from the sphere at the start
     double depth0 = 0.0;           // depth at the start of the step (negative outside)
     double f0 = 0.0, kn = 0.0;     // normal force (N) and stiffness (N/m) there: the law linearized
     Vec3 x0 = Vec3::Zero();        // point at the start
@@ -114,9 +115,11 @@ class FingertipContact final : public cloth::StepContacts {
   void ensure_candidates(int f, const Vec3& centre, double motion);
   void find_samples(int f, const cloth::ClothState& s, const Vec3& proxy_at);
   void make_spring(int f, const Sample& q, cloth::PointSpring& sp) const;
+  bool place(Sample& q, const Vec3& x, const Vec3& p0, const Vec3& at) const;
   void linearize_pressure(Sample& q) const;
   void decide_friction(int f, Sample& q) const;
   void set_coupling_target(cloth::ProxyNode& P, const FingerTarget& device) const;
+  Vec3 expected_proxy(int f, bool first);
   void approach_refined_compliance(int f);
   double normal_at_end(const Sample& q, const Vec3& rel_step) const;
   bool add_contacts(int f, const std::vector<Vec3>& x_new, const Vec3& p0, const Vec3& p1);
@@ -144,7 +147,8 @@ class FingertipContact final : public cloth::StepContacts {
   std::array<ProxyResult, kMaxFingers> out_{};
   std::array<double, kMaxFingers> refined_c_{};  // m/N, in series with the coupling
   std::array<double, kMaxFingers> refined_target_{};  // m/N, the refinement's latest
-  std::array<Vec3, kMaxFingers> last_disp_{};
+  std::array<Vec3, kMaxFingers> last_disp_{};    // the proxy's displacement in the last step
+  std::array<Vec3, kMaxFingers> last_target_{};  // the coupling's target in the last step
   std::array<Vec3, kMaxFingers> p0_{};  // proxies at the start of the step
   std::array<bool, kMaxFingers> seen_{}, valid_{};  // present since the last absence / this step
   const cloth::ClothState* s0_ = nullptr;          // the state the step started from

@@ -1,6 +1,7 @@
 // The multirate path's response model (server/haptics/response_contact.cpp) held to the
 // physics of the direct coupling: at a 20 ms global step the drum press stays within 10% of
-// membrane theory and a pinch carries the handkerchief's weight within 5%.
+// membrane theory, a pinch carries the handkerchief's weight within 5%, and a frictionless
+// stroke is not dragged.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -38,11 +39,11 @@ TEST(ResponseContact, PinchAt20msCarriesTheWeight) {
 }
 
 // A frictionless stroke at constant depth (3 mm into the 15 mm-element drum, 30 mm/s along x):
-// with no friction the sideways force is the cloth's shape alone. Direct coupling keeps its mean
-// under 1% of the normal force. The multirate path drags, more the longer its global step
-// (about 3% at 10 ms, 9% at 20 ms; docs/haptic-loop.md): a known limit, whose cause is not yet
-// isolated. What it must never do is push the finger along (the sign of a model that gives the
-// user energy).
+// with no friction the sideways force is the cloth's shape alone, and a path that starts and
+// ends as far from the rim leaves it near zero on average. Under 1% of the normal force with
+// direct coupling and at 10 and 20 ms global steps. Before each long step linearized its
+// contacts about where the proxy ends (FingertipContact::place), the multirate path dragged at
+// s / r of the normal force, s the proxy's travel in a step: 3.6% at 10 ms and 10% at 20 ms.
 TEST(ResponseContact, FrictionlessStrokeSidewaysForce) {
   const double r = 0.008;
   for (double dt : {1e-3, 1e-2, 2e-2}) {
@@ -67,9 +68,6 @@ TEST(ResponseContact, FrictionlessStrokeSidewaysForce) {
     std::printf("global step %2.0f ms: mean sideways / normal force %+.4f over %d ticks\n", dt * 1e3,
                 fx / fz, n);
     EXPECT_EQ(n, 1800) << dt;  // in contact all along
-    if (dt == 1e-3) {
-      EXPECT_LT(std::abs(fx / fz), 0.01);
-    }
-    EXPECT_LT(fx / fz, 0.01) << dt;  // never a push along the motion (+x)
+    EXPECT_LT(std::abs(fx / fz), 0.01) << dt;
   }
 }
