@@ -7,6 +7,7 @@
 
 #include "cli_checks.hpp"
 
+#include "app/output_claim.hpp"
 #include "app/run_summary.hpp"
 #include "app/scene_file.hpp"
 #include "app/serve.hpp"
@@ -150,6 +151,10 @@ int run_device_session(const Args& a, const app::Scene& scene) {
   app::ServeOptions so;
   so.transport = a.tr;
   so.transport.lcm_log = lcm_log_path(a, scene);
+  // Held until the session ends: a second server given the same paths stops here.
+  app::OutputClaims claims;
+  claims.claim(so.transport.lcm_log, a.tr.lcm_log.empty() ? "the LCM log (--lcm-log)" : "--lcm-log");
+  claims.claim(scene.device.record_path, a.record.empty() ? "[device] record" : "--record");
   so.stop = &app::install_stop_signals();
   so.duration = a.duration;
   so.realtime = !a.fast;
