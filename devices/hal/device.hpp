@@ -97,12 +97,15 @@ struct DeviceCounters {
   std::uint64_t dropped_duplicate = 0;   ///< a sequence number already seen
   std::uint64_t dropped_reordered = 0;   ///< older than the newest sample already taken
   std::uint64_t dropped_out_of_range = 0;  ///< non-finite or outside the workspace
+  std::uint64_t dropped_backlog = 0;  ///< queued before the session started (drained at activate)
+  std::uint64_t dropped_stale = 0;    ///< older than the watchdog when read, by the device's clock
+  std::uint64_t dropped_other_sender = 0;  ///< from another sender than the one the session took
   std::uint64_t send_errors = 0;
   std::uint64_t record_rows = 0;     ///< device-log rows written (--record; set at deactivate)
   std::uint64_t record_dropped = 0;  ///< device-log rows lost to a full buffer (--record)
   std::uint64_t dropped_total() const {
     return dropped_malformed + dropped_version + dropped_duplicate + dropped_reordered +
-           dropped_out_of_range;
+           dropped_out_of_range + dropped_backlog + dropped_stale + dropped_other_sender;
   }
 };
 

@@ -25,6 +25,9 @@ struct DeviceOptions {
 
   // udp
   std::string udp_bind = "127.0.0.1:" + std::to_string(kDefaultUdpPort);  ///< HOST:PORT
+  /// s: a sample older than this when it is read, by the rig's clock, is dropped as stale (the
+  /// safety gate's watchdog: the scene's [haptics] watchdog_ms)
+  double stale_after = 0.005;
 
   // replay
   std::string replay_path;            ///< device log CSV to play back

@@ -121,10 +121,42 @@ std::string UdpDevice::activate() {
   } catch (const std::exception& e) {
     return std::string("udp: ") + e.what();
   }
-  // A new session: accept whatever sequence the rig starts from.
+  // A new session: accept whatever sequence and sender the rig starts from, and nothing the
+  // socket queued before it.
   have_sample_ = false;
+  have_offset_ = false;
   recorded_newest_ = true;
+  drain_backlog();
   return "";
+}
+
+// Off the real-time path: discards the datagrams queued before the session (bounded).
+void UdpDevice::drain_backlog() {
+  for (int i = 0; i < kMaxBacklog; ++i) {
+    const ssize_t n = ::recv(fd_, rx_.data(), rx_.size(), MSG_DONTWAIT | MSG_TRUNC);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) return;  // EAGAIN: empty
+    ++counters_.dropped_backlog;
+  }
+}
+
+bool UdpDevice::same_sender(const sockaddr_in& a, const sockaddr_in& b) noexcept {
+  return a.sin_addr.s_addr == b.sin_addr.s_addr && a.sin_port == b.sin_port;
+}
+
+// The sample's age by the rig's clock (see the header) against the watchdog.
+bool UdpDevice::stale(double now, const udp::StatePacket& p) noexcept {
+  const double offset = now - p.device_time;
+  // A rig whose clock jumped back would otherwise be stale for good: after kClockResync with
+  // nothing taken but a sample in hand, its clock is taken afresh.
+  const bool resync = have_sample_ && now - taken_time_ > kClockResync;
+  if (!have_offset_ || resync || offset < min_offset_ + kClockDrift * (now - offset_time_)) {
+    min_offset_ = offset;
+    offset_time_ = now;
+    have_offset_ = true;
+    return false;
+  }
+  return offset - (min_offset_ + kClockDrift * (now - offset_time_)) > opt_.stale_after;
 }
 
 void UdpDevice::deactivate() {
@@ -173,6 +205,10 @@ Status UdpDevice::read(double now, DeviceState& state) noexcept {
       case udp::ParseResult::OutOfRange: ++counters_.dropped_out_of_range; continue;
       case udp::ParseResult::Ok: break;
     }
+    if (have_sample_ && !same_sender(from, peer_)) {  // the session is the first rig's
+      ++counters_.dropped_other_sender;
+      continue;
+    }
     // Sequence rules against the newest sample taken (proto/udp_device.md).
     if (have_sample_ && p.sequence == newest_.sequence) {
       ++counters_.dropped_duplicate;
@@ -182,7 +218,12 @@ Status UdpDevice::read(double now, DeviceState& state) noexcept {
       ++counters_.dropped_reordered;
       continue;
     }
+    if (stale(now, p)) {
+      ++counters_.dropped_stale;
+      continue;
+    }
     take(p, from);
+    taken_time_ = now;
     fresh = true;
   }
   if (!fresh) return Status::NoData;

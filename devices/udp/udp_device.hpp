@@ -5,6 +5,13 @@
 // newest valid sample and counts each dropped datagram under the counter the protocol names.
 // write() answers the sender of the newest valid sample. Both are non-blocking, allocation-free
 // and never throw.
+//
+// A session is one rig's: activate() discards what was queued before it (a rig that streams
+// while the cloth settles), the first valid sample's sender is the session's rig, and another
+// sender's packets are counted and dropped. A sample whose age, by the rig's clock, exceeds the
+// watchdog is stale and dropped: its age is its offset (loop clock at reading - device_time)
+// above the smallest offset seen, the sample that waited least, which may creep up at
+// kClockDrift to follow a rig clock that runs slow (proto/udp_device.md).
 #pragma once
 
 #include <array>
@@ -35,6 +42,12 @@ class UdpDevice final : public Device {
  public:
   /// Datagrams read per read() call at most (bounds the time read() takes under a flood).
   static constexpr int kMaxDatagramsPerRead = 256;
+  /// Datagrams activate() discards at most (a full receive buffer holds about 8000).
+  static constexpr int kMaxBacklog = 1 << 20;
+  /// s/s: how fast the rig's clock may fall behind the loop's (1000 ppm; quartz drifts < 100).
+  static constexpr double kClockDrift = 1e-3;
+  /// s: a rig sending only stale samples this long has had its clock jump back: resynchronized.
+  static constexpr double kClockResync = 1.0;
 
   /// Throws std::invalid_argument naming the field for a bad udp_bind or finger count.
   explicit UdpDevice(const DeviceOptions& opt);
@@ -74,6 +87,9 @@ class UdpDevice final : public Device {
  private:
   std::string open_socket();
   void close_socket();
+  void drain_backlog();
+  bool stale(double now, const udp::StatePacket& p) noexcept;
+  static bool same_sender(const sockaddr_in& a, const sockaddr_in& b) noexcept;
   void take(const udp::StatePacket& p, const sockaddr_in& from);
   bool send_force(double now, const DeviceCommand& cmd, bool& broken) noexcept;
 
@@ -89,6 +105,11 @@ class UdpDevice final : public Device {
   udp::StatePacket newest_;
   DeviceState state_;
   sockaddr_in peer_{};
+  // The rig's clock against the loop's: the smallest offset (now - device_time) seen this
+  // session, and the loop time it was last updated.
+  bool have_offset_ = false;
+  double min_offset_ = 0.0, offset_time_ = 0.0;
+  double taken_time_ = 0.0;  // loop time the newest sample was taken
   bool recorded_newest_ = true;  ///< the newest sample's row is already in the log
 
   alignas(8) std::array<std::uint8_t, 2048> rx_{};

@@ -402,6 +402,7 @@ Scene load_scene(const std::string& path) {
   if (const toml::table* t = f.table(r, "", "integrator", false)) load_integrator(f, *t, s);
   if (const toml::table* t = f.table(r, "", "device", false)) load_device(f, *t, path, s);
   if (const toml::table* t = f.table(r, "", "haptics", false)) load_haptics(f, *t, s);
+  s.device.stale_after = s.haptics.gate.watchdog;  // a sample the watchdog would call stale
   return s;
 }
 

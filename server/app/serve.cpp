@@ -323,6 +323,8 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
     j["stages"] = p.stages;
     j["notes"] = scene.notes;
     j["device_counters"] = {{"samples", dc.samples}, {"dropped", dc.dropped_total()},
+                            {"dropped_backlog", dc.dropped_backlog}, {"dropped_stale", dc.dropped_stale},
+                            {"dropped_other_sender", dc.dropped_other_sender},
                             {"send_errors", dc.send_errors}};
     if (!record.empty())
       j["record"] = {{"path", record}, {"rows", dc.record_rows}, {"dropped", dc.record_dropped},
@@ -352,7 +354,9 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
   out << "device counters  samples " << dc.samples << ", dropped " << dc.dropped_total()
       << " (malformed " << dc.dropped_malformed << ", version " << dc.dropped_version
       << ", duplicate " << dc.dropped_duplicate << ", reordered " << dc.dropped_reordered
-      << ", out of range " << dc.dropped_out_of_range << ")\n";
+      << ", out of range " << dc.dropped_out_of_range << ", queued before the session "
+      << dc.dropped_backlog << ", stale " << dc.dropped_stale << ", other sender "
+      << dc.dropped_other_sender << ")\n";
   out << "safety gate      non-finite " << gc.non_finite << ", clamped " << gc.clamped
       << ", slew-limited " << gc.slew_limited << ", stale events " << gc.stale_events << "\n";
   out << "cloth events     " << ev.total() << "\n";

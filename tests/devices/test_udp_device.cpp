@@ -244,3 +244,102 @@ TEST(UdpDevice, ReadAndWriteDoNotAllocate) {
 }
 
 }  // namespace
+
+// --- one rig per session, and only fresh samples (issue 36 items 2 and 3) -------------------
+
+namespace {
+/// Sends one state packet (sequence `seq`, device_time `t`) from `rig`, waits (bounded) for it
+/// to arrive and reads it at loop time `now`.
+Status send_and_read(UdpDevice& dev, LoopbackSocket& rig, std::uint64_t seq, double t, double now,
+                     DeviceState& state) {
+  auto p = sample_state(2);
+  p.sequence = seq;
+  p.device_time = t;
+  rig.send_to(dev.local_port(), encode(p));
+  if (!dev.await_sample(mono_now() + 1.0)) return Status::Error;
+  return dev.read(now, state);
+}
+}  // namespace
+
+// A rig that streams before the session (while the cloth settles): what the socket queued is
+// discarded at activate and counted, and the first sample read is the one sent after it.
+TEST(UdpDevice, ActivateDiscardsWhatWasQueuedBeforeTheSession) {
+  UdpDevice dev(loopback_options());
+  ASSERT_EQ(dev.configure(), "");
+  LoopbackSocket rig;
+  for (std::uint64_t s = 1; s <= 300; ++s) {  // more than one read takes (256)
+    auto p = sample_state(2);
+    p.sequence = s;
+    p.device_time = 0.001 * static_cast<double>(s);
+    rig.send_to(dev.local_port(), encode(p));
+  }
+  ::usleep(20000);  // loopback delivers at once; leave it time all the same
+  ASSERT_EQ(dev.activate(), "");
+  EXPECT_EQ(dev.counters().dropped_backlog, 300u);
+  DeviceState state;
+  EXPECT_EQ(dev.read(1.0, state), Status::NoData);
+  ASSERT_EQ(send_and_read(dev, rig, 301, 0.301, 1.0, state), Status::Ok);
+  EXPECT_EQ(state.sequence, 301u);
+  EXPECT_EQ(dev.counters().samples, 1u);
+}
+
+// A sample that waited longer than the watchdog (5 ms), by the rig's clock, is dropped as stale:
+// the state keeps the last fresh sample, and the safety gate sees it age. Fresh ones are taken,
+// a clock that runs slow within 1000 ppm is followed, and a clock that jumped back is taken
+// afresh after 1 s of stale samples.
+TEST(UdpDevice, ASampleOlderThanTheWatchdogIsStale) {
+  UdpDevice dev(loopback_options());  // stale_after 5 ms
+  ASSERT_EQ(dev.configure(), "");
+  ASSERT_EQ(dev.activate(), "");
+  LoopbackSocket rig;
+  DeviceState state;
+  // Rig clock = loop clock - 10 s, packets taken 0.2 ms after they were sent.
+  ASSERT_EQ(send_and_read(dev, rig, 1, 0.0000, 10.0002, state), Status::Ok);
+  ASSERT_EQ(send_and_read(dev, rig, 2, 0.0010, 10.0011, state), Status::Ok);  // waited less: fresh
+  // Sent at 2 ms, read 8 ms later (a queue behind a stalled loop): stale, dropped.
+  EXPECT_EQ(send_and_read(dev, rig, 3, 0.0020, 10.0100, state), Status::NoData);
+  EXPECT_EQ(dev.counters().dropped_stale, 1u);
+  EXPECT_EQ(state.sequence, 2u);
+  // 4 ms late is within the watchdog.
+  ASSERT_EQ(send_and_read(dev, rig, 4, 0.0100, 10.0141, state), Status::Ok);
+  // A rig clock running 500 ppm slow for 10 s: 5 ms behind, and still fresh.
+  ASSERT_EQ(send_and_read(dev, rig, 5, 9.9950, 20.0000, state), Status::Ok);
+  EXPECT_EQ(dev.counters().dropped_stale, 1u);
+  // The rig's clock jumps back 1 minute: stale until 1 s has passed with nothing taken.
+  EXPECT_EQ(send_and_read(dev, rig, 6, -50.0, 20.001, state), Status::NoData);
+  EXPECT_EQ(send_and_read(dev, rig, 7, -49.5, 20.501, state), Status::NoData);
+  EXPECT_EQ(dev.counters().dropped_stale, 3u);
+  ASSERT_EQ(send_and_read(dev, rig, 8, -48.99, 21.01, state), Status::Ok);
+  ASSERT_EQ(send_and_read(dev, rig, 9, -48.989, 21.0111, state), Status::Ok);
+  EXPECT_EQ(state.sequence, 9u);
+}
+
+// Two rigs sending to one port: the session is the first rig's. The second one's packets are
+// counted as from another sender and never taken, even with higher sequences, and the forces go
+// to the first; a new session (activate) takes whichever rig sends first.
+TEST(UdpDevice, TheSessionKeepsTheFirstRigAndCountsAnotherSender) {
+  UdpDevice dev(loopback_options());
+  ASSERT_EQ(dev.configure(), "");
+  ASSERT_EQ(dev.activate(), "");
+  LoopbackSocket first, second;
+  DeviceState state;
+  ASSERT_EQ(send_and_read(dev, first, 1, 0.001, 5.0, state), Status::Ok);
+  EXPECT_EQ(send_and_read(dev, second, 1000, 0.002, 5.001, state), Status::NoData);
+  EXPECT_EQ(send_and_read(dev, second, 1001, 0.003, 5.002, state), Status::NoData);
+  ASSERT_EQ(send_and_read(dev, first, 2, 0.004, 5.003, state), Status::Ok);
+  EXPECT_EQ(state.sequence, 2u);
+  EXPECT_EQ(dev.counters().dropped_other_sender, 2u);
+  EXPECT_EQ(dev.counters().dropped_reordered, 0u);
+  ASSERT_EQ(dev.write(5.003, DeviceCommand{}), Status::Ok);
+  udp::ForcePacket f;
+  const auto reply = first.receive();
+  ASSERT_EQ(udp::parse_force_packet(reply.data(), reply.size(), 2, f), ParseResult::Ok);
+  EXPECT_EQ(f.sequence, 2u);
+
+  dev.deactivate();
+  (void)first.receive();  // the zero-force packet
+  ASSERT_EQ(dev.activate(), "");
+  ASSERT_EQ(send_and_read(dev, second, 1, 0.010, 6.0, state), Status::Ok);
+  EXPECT_EQ(send_and_read(dev, first, 3, 0.011, 6.001, state), Status::NoData);
+  EXPECT_EQ(dev.counters().dropped_other_sender, 3u);
+}

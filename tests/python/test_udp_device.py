@@ -316,3 +316,92 @@ def test_the_device_clock_needs_a_streaming_device():
     assert r.returncode == 2
     assert "clock \"device\"" in r.stderr and "not mock" in r.stderr, r.stderr
     assert "Traceback" not in r.stderr
+
+
+def rig_process(port, log, trajectory=None, still=None, rate=1000.0, duration=60.0):
+    args = ["--trajectory", str(trajectory)] if trajectory else [f"--still={still}"]
+    return subprocess.Popen(
+        [sys.executable, str(RIG), "--server", f"127.0.0.1:{port}", "--duration", str(duration),
+         "--rate", str(rate), "--log", str(log), *args],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def stop(*procs):
+    for p in procs:
+        if p is not None and p.poll() is None:
+            p.send_signal(signal.SIGINT)
+    for p in procs:
+        if p is not None:
+            try:
+                p.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait(timeout=10)
+
+
+def test_a_rig_streaming_before_the_session_is_rendered_from_fresh_samples(tmp_path):
+    """Issue 36 item 2: a rig that streams from 1 s before the server starts (its preroll takes
+    a few seconds more) while finger 0 slides at 20 mm/s, 4 cm in front of the cloth. What was
+    queued before the session is discarded and counted (`dropped_backlog`); the session takes
+    about one sample per tick, not the backlog at 256 a tick; and the fingertip the loop sees
+    moves as the rig's does, never more than 0.5 mm from one tick to the next (20 mm/s x a
+    late tick's 10 ms is 0.2 mm; the backlog jumped it 1-2 cm)."""
+    port = free_port()
+    speed, seconds = 0.02, 3.0
+    traj = write_trajectory(tmp_path / "slide.csv",
+                            {0: [(0.0, (-0.09, -0.04, 0.0)), (9.0, (-0.09 + 9 * speed, -0.04, 0.0))],
+                             1: [(0.0, (0.06, -0.04, 0.0))]})
+    rig = rig_process(port, tmp_path / "rig.csv", trajectory=traj, duration=9.0)
+    log = tmp_path / "session.lcm"
+    try:
+        time.sleep(1.0)
+        with Server("--device", "udp", "--udp-bind", f"127.0.0.1:{port}", "--duration", seconds,
+                    "--json", "--no-zenoh", cwd=tmp_path, lcm_log=log) as srv:
+            rc = srv.finish(seconds=90)
+            assert rc == 0, srv.stderr[-3000:]
+            summary = json.loads(srv.stdout.strip().splitlines()[-1])
+    finally:
+        stop(rig)
+    c = summary["device_counters"]
+    assert c["dropped_backlog"] > 500, c
+    assert c["samples"] <= 1.05 * summary["haptic_ticks"] + 20, (c, summary["haptic_ticks"])
+    # From the first sample on (before it the device reads its origin: (0, 0, 0)).
+    xs = [s["device_position"][0][0] for s in haptic_samples(read_lcm_log(log))
+          if s["device_position"][0][1] != 0.0]
+    assert len(xs) > 1000
+    jumps = [abs(b - a) for a, b in zip(xs, xs[1:])]
+    assert max(jumps) <= 0.0005, f"the fingertip jumped {max(jumps) * 1e3:.2f} mm in one tick"
+
+
+def test_a_second_rig_on_the_port_does_not_take_over(tmp_path):
+    """Issue 36 item 3: two rigs stream to one port. The first to send holds the session; the
+    second, starting 0.5 s later at a higher rate with its fingertip 10 cm away, is counted as
+    another sender (`dropped_other_sender`, about its packet count) and never rendered: finger 0
+    stays where the first rig holds it on every tick, and the first rig gets its force packets
+    to the end."""
+    port = free_port()
+    seconds = 3.0
+    first = second = None
+    log = tmp_path / "session.lcm"
+    with Server("--device", "udp", "--udp-bind", f"127.0.0.1:{port}", "--duration", seconds,
+                "--json", "--no-zenoh", cwd=tmp_path, lcm_log=log) as srv:
+        try:
+            srv.wait_ready()
+            first = rig_process(port, tmp_path / "first.csv", still="-0.02,-0.04,0;0.02,-0.04,0")
+            time.sleep(0.5)
+            second = rig_process(port, tmp_path / "second.csv", still="0.08,-0.04,0;0.02,-0.04,0",
+                                 rate=1200.0)
+            rc = srv.finish(seconds=90)
+            assert rc == 0, srv.stderr[-3000:]
+            summary = json.loads(srv.stdout.strip().splitlines()[-1])
+        finally:
+            stop(first, second)
+    c = summary["device_counters"]
+    assert c["dropped_other_sender"] > 1000, c
+    samples = haptic_samples(read_lcm_log(log))
+    present = [s["device_position"][0] for s in samples if s["device_position"][0][1] != 0.0]
+    assert len(present) > 1000
+    assert all(abs(p[0] + 0.02) < 1e-9 for p in present), \
+        f"finger 0 left the first rig: x in [{min(p[0] for p in present)}, {max(p[0] for p in present)}]"
+    with (tmp_path / "first.csv").open(newline="") as f:
+        assert sum(1 for _ in csv.DictReader(f)) > 1000
