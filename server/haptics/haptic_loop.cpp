@@ -34,6 +34,12 @@ bool HapticLoop::wind_down(double now) noexcept {
   gate_.apply(now, state_.received_time, cmd_, gated_);
   if (dev_.write(now, gated_) == devices::Status::Error) ++device_errors_;
   last_now_ = now;
+  // The report of the tick, for the session's observers (the LCM log, the MCAP): the force
+  // each finger is sent, fading to zero through the gate; the contact as the last tick left it.
+  ++tick_;
+  report_.time = now;
+  report_.tick = tick_;
+  for (int f = 0; f < fingers_; ++f) report_.finger[f].force = map_.R * gated_.force[f];
   for (int f = 0; f < fingers_; ++f)
     if (!gated_.force[f].isZero(0.0)) return false;
   return true;

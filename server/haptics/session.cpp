@@ -214,8 +214,7 @@ long Session::device_paced_ticks(double seconds, double t_start, double period) 
 double Session::haptic_tick(long k, double woke, double t_start) {
   loop_->tick(woke - t_start);
   account_tick();
-  for (auto* o : observers_)
-    o->on_haptic_tick(loop_->last_report(), loop_->device_state(), loop_->last_command());
+  notify_tick();
   if (k % 1000 == 999)
     for (auto* o : observers_) o->on_loop_stats(r_.haptic);
   const double done = mono_now();
@@ -230,8 +229,16 @@ void Session::realtime_wind_down(double t_start, double period) {
   for (long j = 1; j <= kWindDownTicks; ++j) {
     const timespec ts = to_timespec(t_end + j * period);
     clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
-    if (loop_->wind_down(mono_now() - t_start)) break;
+    const bool done = loop_->wind_down(mono_now() - t_start);
+    notify_tick();
+    if (done) break;
   }
+}
+
+// The observers see the haptic loop's last tick.
+void Session::notify_tick() noexcept {
+  for (auto* o : observers_)
+    o->on_haptic_tick(loop_->last_report(), loop_->device_state(), loop_->last_command());
 }
 
 SessionReport Session::report() const {

@@ -145,6 +145,7 @@ class Session {
   long device_paced_ticks(double seconds, double t_start, double period);
   double haptic_tick(long k, double woke, double t_start);
   void realtime_wind_down(double t_start, double period);
+  void notify_tick() noexcept;
   /// Most closing ticks that bring the force to zero through the gate's slew limit (the
   /// default 1000 N/s takes 5 ms from 5 N).
   static constexpr long kWindDownTicks = 200;
@@ -189,12 +190,14 @@ void Session::run_stepped_late(double seconds, double sim_period, L&& late, F&& 
         std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
     ++r_.haptic.ticks;
     account_tick();
-    for (auto* o : observers_)
-      o->on_haptic_tick(loop_->last_report(), loop_->device_state(), loop_->last_command());
+    notify_tick();
     on_tick(*loop_, *sim_);
   }
   r_.sim_time = k * hp;
-  for (long j = 0; j < kWindDownTicks && !loop_->wind_down((k + j) * hp + shift); ++j) {
+  for (long j = 0; j < kWindDownTicks; ++j) {
+    const bool done = loop_->wind_down((k + j) * hp + shift);
+    notify_tick();
+    if (done) break;
   }
   stop();
 }

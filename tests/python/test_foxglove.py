@@ -9,6 +9,7 @@ Network: TCP on 127.0.0.1 only. Every wait is bounded in count and time.
 from __future__ import annotations
 
 import json
+import math
 import shutil
 import signal
 import subprocess
@@ -24,7 +25,7 @@ from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
 from buildpaths import program
-from server_session import Server, free_port, wait_until
+from server_session import Server, free_port, haptic_samples, read_lcm_log, wait_until
 
 import socket
 
@@ -364,3 +365,17 @@ def test_layout_shows_the_channels_the_server_publishes(recorded_run):
         assert isinstance(value, (int, float, bool)), path
     (log_panel,) = [v for k, v in panels.items() if k.startswith("RosOut!")]
     assert log_panel["topicToRender"] == "/events" and "/events" in channels
+
+
+def test_the_recording_ends_with_the_zero_force_the_device_was_sent(recorded_run):
+    """Issue 36 item 4: the run ends while finger 0 strokes the cloth; the device is sent zero
+    force through the safety gate before it is let go, and the LCM log's last haptic sample and
+    the MCAP's last /haptics message say so (they used to end on the last session tick's
+    force)."""
+    mcap, log, _ = recorded_run
+    samples = haptic_samples(read_lcm_log(log))
+    assert max(math.hypot(*s["command"][0]) for s in samples[-60:-20]) > 1e-4, "no force at the end"
+    assert all(c == (0.0, 0.0, 0.0) for c in samples[-1]["command"][:2]), samples[-1]
+    _, messages = read_mcap(mcap)
+    last = [json.loads(d) for t, _, d in messages if t == "/haptics"][-1]
+    assert all(f["force"] == {"x": 0.0, "y": 0.0, "z": 0.0} for f in last["fingers"]), last

@@ -137,16 +137,22 @@ def check_record(path: Path, stop_time: float, rows_counted: int) -> list[list[s
 
 def check_lcm_log(path: Path, summary: dict) -> list[dict]:
     """Readable to its end; every haptic tick of the session in it (ticks 1..N, the last within
-    10 ms of the stop); `started`, then `stopping` naming the signal, and `stopped` last."""
+    10 ms of the stop), then the wind-down's ticks (at most 200, Session::kWindDownTicks) that
+    fade the force to zero through the safety gate, the last of them within the gate's ramp
+    (20 ms) of the stop and commanding exactly zero force on every finger (issue 36 item 4);
+    `started`, then `stopping` naming the signal, and `stopped` last."""
     events = read_lcm_log(path)
     samples = haptic_samples(events)
     assert samples, f"{path}: no event on the haptics channel"
     ticks = [s["tick"] for s in samples]
-    assert ticks == list(range(1, summary["ticks"] + 1)), \
+    n = summary["ticks"]
+    assert n < len(ticks) <= n + 200 and ticks == list(range(1, len(ticks) + 1)), \
         f"{path}: haptic ticks {ticks[:3]}..{ticks[-3:]} ({len(ticks)}), " \
-        f"the summary counts {summary['ticks']}"
-    assert abs(samples[-1]["time"] - summary["stop"]) <= RECORD_SLACK_S, \
-        (samples[-1]["time"], summary)
+        f"the summary counts {n}"
+    assert abs(samples[n - 1]["time"] - summary["stop"]) <= RECORD_SLACK_S, \
+        (samples[n - 1]["time"], summary)
+    assert samples[-1]["time"] - summary["stop"] <= RECORD_SLACK_S + 0.020, (samples[-1], summary)
+    assert all(c == (0.0, 0.0, 0.0) for c in samples[-1]["command"][:FINGERS]), samples[-1]
     kinds = [(m.kind, m.text) for topic, m in events if topic == "events"]
     assert kinds[0][0] == "started", kinds
     stopping = [text for kind, text in kinds if kind == "stopping"]
