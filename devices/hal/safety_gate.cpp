@@ -29,6 +29,7 @@ void SafetyGate::reset() {
   gain_ = 0.0;
   stale_ = true;
   for (auto& p : prev_) p.setZero();
+  for (auto& h : held_) h.setZero();
 }
 
 void SafetyGate::apply(double now, double state_time, const DeviceCommand& in,
@@ -61,6 +62,10 @@ void SafetyGate::apply(double now, double state_time, const DeviceCommand& in,
       flags |= kFlagClamped;
       ++c_.clamped;
     }
+    // Stale, the loop renders nothing (the fingertip's place is unknown): what fades out over
+    // the ramp is the force last asked while the state was fresh, not the loop's zero.
+    if (stale) f = held_[i];
+    else held_[i] = f;
     f *= gain_;
     // Slew limit per component, so a step in force becomes a ramp.
     const Vec3 d = f - prev_[i];

@@ -57,6 +57,7 @@ class SafetyGate {
   double gain_ = 0.0;
   bool stale_ = true;
   std::array<Vec3, kMaxFingers> prev_{};
+  std::array<Vec3, kMaxFingers> held_{};  // the last force asked while fresh (clamped, finite)
   GateCounters c_;
 };
 

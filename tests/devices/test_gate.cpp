@@ -132,6 +132,39 @@ TEST(SafetyGate, StaleAfterWatchdogRampsToZeroAndRecoversSmoothly) {
   EXPECT_LE(max_jump, 2.0 * 0.001 / 0.02 + 1e-12);
 }
 
+// The haptic loop renders no force for a finger whose state is stale (its place is unknown): the
+// gate fades out the force last asked while fresh over ramp_time (20 ms, as docs/devices.md
+// says), and the slew limit (1000 N/s) does not cut it short. It used to fade the loop's zero,
+// so 1.54 N went to 0 in 2 ms, at the slew limit.
+TEST(SafetyGate, StaleStateFadesTheLastForceOverTheRampTime) {
+  GateConfig c;
+  c.watchdog = 0.005;
+  c.ramp_time = 0.02;
+  SafetyGate g(two_fingers(), c);
+  DeviceCommand in, out;
+  in.force[0] = Vec3(1.5, 0, 0);
+  double t = 0.0;
+  out = run(g, t, 100, in);
+  ASSERT_NEAR(out.force[0].x(), 1.5, 1e-12);
+  const double t_last = t;
+  DeviceCommand none;  // what the loop asks once the state is stale
+  int stale_at = -1, zero_at = -1;
+  double prev = out.force[0].x(), max_jump = 0.0;
+  for (int k = 1; k <= 60; ++k) {
+    t += 0.001;
+    const bool stale_before = g.stale();
+    g.apply(t, t_last, stale_before ? none : in, out);
+    if (g.stale() && stale_at < 0) stale_at = k;
+    if (out.force[0].isZero(0.0) && zero_at < 0) zero_at = k;
+    max_jump = std::max(max_jump, std::abs(out.force[0].x() - prev));
+    prev = out.force[0].x();
+  }
+  ASSERT_GT(stale_at, 0);
+  EXPECT_NEAR(zero_at - stale_at, 19, 1);                   // 20 ms from the first stale tick
+  EXPECT_LE(max_jump, 1.5 * 0.001 / 0.02 + 1e-12);         // 75 mN a tick: a ramp
+  EXPECT_EQ(out.force[0], Vec3::Zero());
+}
+
 TEST(SafetyGate, NeverStateIsStaleAndApplyAllocatesNothing) {
   SafetyGate g(two_fingers());
   DeviceCommand in, out;

@@ -191,8 +191,9 @@ def test_a_late_rig_touches_only_after_it_descends(tmp_path, reference):
     # Contact only after the descent: every in-contact tick, and so the summary's count.
     check_absent_before(run, t_first)
     ticks = [x["tick"] for x in run.samples]
-    assert ticks == list(range(1, s["haptic_ticks"] + 1))  # every tick is in the log
-    touching = [x["time"] for x in run.samples if any(x["in_contact"])]
+    # every tick is in the log, then the wind-down's (at most 200) that fade the force to zero
+    assert ticks == list(range(1, len(ticks) + 1)) and 0 < len(ticks) - s["haptic_ticks"] <= 200
+    touching = [x["time"] for x in run.samples[:s["haptic_ticks"]] if any(x["in_contact"])]
     assert s["contact_ticks"] == len(touching) > 100, (s["contact_ticks"], len(touching))
     assert min(touching) > t_descent, (min(touching), t_descent)
     # ... and while the rig streamed: absent again once its packets stop (the watchdog).
@@ -405,3 +406,34 @@ def test_a_second_rig_on_the_port_does_not_take_over(tmp_path):
         f"finger 0 left the first rig: x in [{min(p[0] for p in present)}, {max(p[0] for p in present)}]"
     with (tmp_path / "first.csv").open(newline="") as f:
         assert sum(1 for _ in csv.DictReader(f)) > 1000
+
+
+def test_a_rig_that_falls_silent_gets_its_force_faded_over_the_ramp(tmp_path):
+    """Issue 36 item 5 (docs/devices.md): a rig pressing the cloth stops sending state and keeps
+    listening. 5 ms after its last packet the state is stale, and the force it is sent fades
+    from the pressing force to zero over the 20 ms ramp, in steps of 1/20 of it a tick; it used
+    to drop to zero at once (the loop renders nothing for a stale finger, and only the slew
+    limit, 1 N/ms, stood between)."""
+    port = free_port()
+    press = {0: [(0.0, F0_HOVER), (0.5, F0_PRESSED), (2.0, F0_PRESSED)], 1: [(0.0, F1_HOVER)]}
+    with Server("--device", "udp", "--udp-bind", f"127.0.0.1:{port}", "--duration", 4.0,
+                "--no-zenoh", "--no-lcm-log", cwd=tmp_path) as srv:
+        srv.wait_ready()
+        with Rig(port, write_trajectory(tmp_path / "press.csv", press), 2.0, tmp_path / "rig.csv",
+                 "--linger", "0.3") as rig:
+            rig.finish()
+            packets = rig.forces()
+        assert srv.finish(seconds=90) == 0, srv.stderr[-3000:]
+    # The silence at the end: the packets after the last fresh one (a Python rig also pauses
+    # now and then mid-stream, long enough for the watchdog).
+    fresh = [i for i, p in enumerate(packets) if not p["flags"] & 1]
+    i0 = fresh[-1] + 1
+    assert i0 < len(packets), "the rig was never reported stale at the end"
+    f0 = math.hypot(*packets[i0 - 1]["forces"][0])
+    assert f0 > 1e-3, f"not pressing when it fell silent: {f0} N"
+    fading = [math.hypot(*p["forces"][0]) for p in packets[i0:]]
+    nonzero = sum(1 for f in fading if f > 0.0)
+    assert 17 <= nonzero <= 21, f"{nonzero} stale packets with force (20 ms ramp): {fading[:25]}"
+    steps = [a - b for a, b in zip([f0] + fading, fading)]
+    # a step per tick of 1/20 of it: up to twice that on a tick that woke a period late
+    assert max(steps) <= f0 / 20 * 2.0 + 1e-9, (f0, fading[:25])
