@@ -174,11 +174,20 @@ inline DrumResult press_drum(const DrumSpec& spec) {
   std::vector<std::pair<double, double>> curve;  // (depth, force)
   bool touched = false;
   if (spec.realtime) {
+    // The session's last tick, not the wind-down's after it (which fade the force to zero).
+    struct LastTicks final : haptics::SessionObserver {
+      std::vector<haptics::HapticReport> reports = std::vector<haptics::HapticReport>(512);
+      void on_haptic_tick(const haptics::HapticReport& h, const devices::DeviceState&,
+                          const devices::DeviceCommand&) noexcept override {
+        reports[h.tick % reports.size()] = h;
+      }
+    } last;
+    rig.session->add_observer(&last);
     rig.session->run_realtime(t_end + spec.hold);
-    const auto& f = rig.session->haptics().last_report().finger[0];
+    res.report = rig.session->report();
+    const auto& f = last.reports[res.report.haptic.ticks % last.reports.size()].finger[0];
     res.final_depth = -(f.proxy.z() - r);
     res.final_force = f.force.z();
-    res.report = rig.session->report();
     return res;
   }
   rig.session->run_stepped(t_end + spec.hold, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
