@@ -157,8 +157,11 @@ const HapticTick* Recording::haptics_at(double time) const {
 
 Recording read_lcm_log(const std::string& path) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec))
+  const auto st = std::filesystem::status(path, ec);
+  if (!std::filesystem::exists(st))
     throw InputError(path + ": cannot open as an LCM log (no such file)");
+  if (!std::filesystem::is_regular_file(st))  // /dev/zero would be read for ever
+    throw InputError(path + ": not a regular file (a device, FIFO or socket is not read as input)");
   std::unique_ptr<lcm_eventlog_t, void (*)(lcm_eventlog_t*)> log(
       lcm_eventlog_create(path.c_str(), "r"), lcm_eventlog_destroy);
   if (!log) throw InputError(path + ": cannot open as an LCM log (not readable)");

@@ -1,4 +1,5 @@
 #include "log/device_log.hpp"
+#include "log/input_file.hpp"
 
 #include "hal/rt_handoff.hpp"
 
@@ -125,6 +126,7 @@ double parse_number(const std::string& text, const std::string& path, int line, 
 }
 
 std::vector<LogRow> load_device_log(const std::string& path) {
+  if (std::string e = check_input_file(path, kMaxDataBytes); !e.empty()) throw std::invalid_argument(e);
   std::ifstream in(path);
   if (!in) throw std::invalid_argument(path + ": cannot open the device log");
   std::string line;

@@ -1,4 +1,5 @@
 #include "mock/trajectory.hpp"
+#include "log/input_file.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -98,6 +99,7 @@ void Trajectory::check_speed(double max_speed, const std::string& source) const 
 }
 
 Trajectory load_trajectory_csv(const std::string& path, int fingers) {
+  if (std::string e = check_input_file(path, kMaxDataBytes); !e.empty()) throw std::invalid_argument(e);
   std::ifstream in(path);
   if (!in) throw std::invalid_argument(path + ": cannot open the trajectory");
   Trajectory tr(fingers);
@@ -229,6 +231,7 @@ struct Script {
 
 Script parse_script(const std::string& path) {
   Script s{path, {}};
+  if (std::string e = check_input_file(path, kMaxConfigBytes); !e.empty()) throw std::invalid_argument(e);
   try {
     s.root = toml::parse_file(path);
   } catch (const toml::parse_error& e) {

@@ -9,6 +9,7 @@
 
 #include <lcm/eventlog.h>
 
+#include "log/input_file.hpp"
 #include "cli_checks.hpp"
 
 #include "transport/foxglove_sink.hpp"
@@ -35,6 +36,7 @@ struct Counts {
 
 // Every event of the log into the sink. Throws std::runtime_error naming the log.
 Counts export_log(const std::string& path, transport::FoxgloveSink& sink) {
+  if (std::string e = devices::check_input_file(path, 0); !e.empty()) throw std::runtime_error(e);
   lcm_eventlog_t* log = lcm_eventlog_create(path.c_str(), "r");
   if (!log) throw std::runtime_error(path + ": cannot open the LCM log");
   const auto channels = hub_channels();

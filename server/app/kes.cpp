@@ -1,4 +1,5 @@
 #include "app/kes.hpp"
+#include "log/input_file.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -356,6 +357,8 @@ void compare_measured(KesResult& r, const KesMeasured& meas) {
 }
 
 KesMeasured load_measured(const std::string& path, KesTest test) {
+  if (std::string e = devices::check_input_file(path, devices::kMaxDataBytes); !e.empty())
+    throw ConfigError(e);
   std::ifstream in(path);
   if (!in) throw ConfigError(path + ": cannot open the measured CSV");
   auto fail = [&](int line, const std::string& msg) {

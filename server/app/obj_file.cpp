@@ -1,4 +1,5 @@
 #include "app/obj_file.hpp"
+#include "log/input_file.hpp"
 
 #include <cmath>
 #include <fstream>
@@ -9,6 +10,8 @@
 namespace hapticloth::app {
 
 ObjMesh load_obj(const std::string& path) {
+  if (std::string e = devices::check_input_file(path, devices::kMaxMeshBytes); !e.empty())
+    throw ConfigError(e);
   std::ifstream in(path);
   if (!in) throw ConfigError(path + ": cannot open OBJ file");
   ObjMesh m;

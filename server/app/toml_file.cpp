@@ -6,14 +6,14 @@
 #include <sstream>
 #include <type_traits>
 
+#include "log/input_file.hpp"
 namespace hapticloth::app {
 
 TomlFile TomlFile::load(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw ConfigError(path + ": cannot open file");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse(ss.str(), path);
+  std::string text;
+  if (std::string e = devices::read_input_file(path, devices::kMaxConfigBytes, text); !e.empty())
+    throw ConfigError(e);
+  return parse(text, path);
 }
 
 TomlFile TomlFile::parse(const std::string& text, const std::string& name) {

@@ -1,4 +1,5 @@
 #include "transport/zenoh_session.hpp"
+#include "log/input_file.hpp"
 
 #include <stdexcept>
 
@@ -33,6 +34,8 @@ std::string default_zenoh_config(const std::string& listen) {
 
 ZenohSession::ZenohSession(const std::string& config_path, const std::string& listen) {
   if (!config_path.empty()) {
+    if (std::string e = devices::check_input_file(config_path, devices::kMaxConfigBytes); !e.empty())
+      throw std::runtime_error("zenoh config " + e);
     s_ = hz_open_file(config_path.c_str());
     if (!s_) fail("open with " + config_path);
   } else {

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import stat
 import sys
 
 EXIT_FAILED = 1
@@ -98,14 +99,25 @@ def check_writable(path, option=None) -> None:
         raise UserError(f"{where}: cannot write: permission denied")
 
 
-def check_input_file(path, option=None) -> None:
-    """UserError naming `path` unless it is an existing regular file."""
+#: bytes: the largest input a tool reads (a device log of an hour at 1 kHz is about 0.7 GB)
+MAX_INPUT_BYTES = 2 << 30
+
+
+def check_input_file(path, option=None, max_bytes=MAX_INPUT_BYTES) -> None:
+    """UserError naming `path` unless it is an existing regular file of at most `max_bytes`
+    (a device such as /dev/zero, a FIFO or a huge file would hang the reader or fill memory)."""
     p = os.fspath(path)
     where = f"{option} {p}" if option else p
     if not os.path.exists(p):
         raise UserError(f"{where}: no such file")
     if os.path.isdir(p):
         raise UserError(f"{where}: is a folder, not a file")
+    st = os.stat(p)
+    if not stat.S_ISREG(st.st_mode):
+        raise UserError(f"{where}: not a regular file (a device, FIFO or socket is not read as input)")
+    if st.st_size > max_bytes:
+        raise UserError(f"{where}: {st.st_size} bytes, more than the {max_bytes >> 20} MiB an "
+                        "input may have")
 
 
 def not_text_error(path, e: UnicodeDecodeError) -> UserError:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import UserError
+from .errors import UserError, check_input_file
 from .fit_spline import fit_parameter_count
 
 CURVES = ("weft", "warp", "shear")
@@ -70,6 +70,7 @@ def _parse_number(path: str, lineno: int, what: str, text: str) -> float:
 
 def read_measured(path: str) -> Measured:
     """Read a measured-curves CSV; raises InputError (FILE:LINE: message) on bad input."""
+    check_input_file(path)
     try:
         with open(path, encoding="utf-8") as f:
             lines = f.read().splitlines()

@@ -8,7 +8,7 @@ import importlib
 import os
 import sys
 
-from .errors import UserError
+from .errors import UserError, check_input_file
 
 TYPES = (
     "cloth_topology_t",
@@ -82,6 +82,7 @@ def open_event_log(path):
         raise UserError(f"{p}: cannot open as an LCM log (no such file)")
     if os.path.isdir(p):
         raise UserError(f"{p}: cannot open as an LCM log (a folder)")
+    check_input_file(p, max_bytes=1 << 62)  # streamed: any size, but a file
     try:
         with open(p, "rb") as f:
             head = f.read(len(LOG_SYNC))
