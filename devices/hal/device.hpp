@@ -98,7 +98,7 @@ struct DeviceCounters {
   std::uint64_t dropped_reordered = 0;   ///< older than the newest sample already taken
   std::uint64_t dropped_out_of_range = 0;  ///< non-finite or outside the workspace
   std::uint64_t dropped_backlog = 0;  ///< queued before the session started (drained at activate)
-  std::uint64_t dropped_stale = 0;    ///< older than the watchdog when read, by the device's clock
+  std::uint64_t dropped_stale = 0;    ///< newest of a read, older than the watchdog by the device's clock
   std::uint64_t dropped_other_sender = 0;  ///< from another sender than the one the session took
   std::uint64_t send_errors = 0;
   std::uint64_t record_rows = 0;     ///< device-log rows written (--record; set at deactivate)

@@ -144,19 +144,22 @@ bool UdpDevice::same_sender(const sockaddr_in& a, const sockaddr_in& b) noexcept
   return a.sin_addr.s_addr == b.sin_addr.s_addr && a.sin_port == b.sin_port;
 }
 
-// The sample's age by the rig's clock (see the header) against the watchdog.
-bool UdpDevice::stale(double now, const udp::StatePacket& p) noexcept {
+// The rig's clock against the loop's (see the header): every valid packet read at `now` is
+// evidence of the least offset; a rig whose clock jumped back (nothing taken for kClockResync)
+// is taken afresh.
+void UdpDevice::note_offset(double now, const udp::StatePacket& p) noexcept {
   const double offset = now - p.device_time;
-  // A rig whose clock jumped back would otherwise be stale for good: after kClockResync with
-  // nothing taken but a sample in hand, its clock is taken afresh.
   const bool resync = have_sample_ && now - taken_time_ > kClockResync;
   if (!have_offset_ || resync || offset < min_offset_ + kClockDrift * (now - offset_time_)) {
     min_offset_ = offset;
     offset_time_ = now;
     have_offset_ = true;
-    return false;
   }
-  return offset - (min_offset_ + kClockDrift * (now - offset_time_)) > opt_.stale_after;
+}
+
+// How long the sample waited: its offset above the least seen (which creeps at kClockDrift).
+double UdpDevice::age(double now, const udp::StatePacket& p) const noexcept {
+  return (now - p.device_time) - (min_offset_ + kClockDrift * (now - offset_time_));
 }
 
 void UdpDevice::deactivate() {
@@ -218,15 +221,20 @@ Status UdpDevice::read(double now, DeviceState& state) noexcept {
       ++counters_.dropped_reordered;
       continue;
     }
-    if (stale(now, p)) {
-      ++counters_.dropped_stale;
-      continue;
-    }
+    note_offset(now, p);
     take(p, from);
-    taken_time_ = now;
     fresh = true;
   }
   if (!fresh) return Status::NoData;
+  // The newest sample found is older than the watchdog (a backlog read 256 at a time, or a
+  // queue built while the loop stalled): not rendered from, and the state the gate sees keeps
+  // ageing. Older ones in the same read were superseded, whatever their age.
+  if (age(now, newest_) > opt_.stale_after) {
+    --counters_.samples;
+    ++counters_.dropped_stale;
+    return Status::NoData;
+  }
+  taken_time_ = now;
 
   state_.device_time = newest_.device_time;
   state_.received_time = now;

@@ -8,8 +8,9 @@
 //
 // A session is one rig's: activate() discards what was queued before it (a rig that streams
 // while the cloth settles), the first valid sample's sender is the session's rig, and another
-// sender's packets are counted and dropped. A sample whose age, by the rig's clock, exceeds the
-// watchdog is stale and dropped: its age is its offset (loop clock at reading - device_time)
+// sender's packets are counted and dropped. When the newest sample a read finds is older, by the
+// rig's clock, than the watchdog, it is stale and dropped: its age is its offset (loop clock at
+// reading - device_time)
 // above the smallest offset seen, the sample that waited least, which may creep up at
 // kClockDrift to follow a rig clock that runs slow (proto/udp_device.md).
 #pragma once
@@ -88,7 +89,8 @@ class UdpDevice final : public Device {
   std::string open_socket();
   void close_socket();
   void drain_backlog();
-  bool stale(double now, const udp::StatePacket& p) noexcept;
+  void note_offset(double now, const udp::StatePacket& p) noexcept;
+  double age(double now, const udp::StatePacket& p) const noexcept;
   static bool same_sender(const sockaddr_in& a, const sockaddr_in& b) noexcept;
   void take(const udp::StatePacket& p, const sockaddr_in& from);
   bool send_force(double now, const DeviceCommand& cmd, bool& broken) noexcept;
