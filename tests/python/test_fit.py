@@ -449,7 +449,7 @@ def test_missing_input_file(tmp_path):
     missing = tmp_path / "nope.csv"
     r = cli(missing, "-o", tmp_path / "out.toml")
     assert r.returncode == 2
-    assert str(missing) in r.stderr and "No such file" in r.stderr
+    assert str(missing) in r.stderr and "no such file" in r.stderr.lower()
     assert "Traceback" not in r.stderr
 
 

@@ -161,7 +161,8 @@ def test_plot_of_a_server_log(tmp_path):
     assert plot.main([str(log), "-o", str(out), "--size", "800x500"]) == 0
     assert png_size(out) == (800, 500)
     run = plot.read_log(log)
-    assert len(run.time) == 1000 and run.fingers == 2
+    # the session's 1000 ticks, then the wind-down's that fade the force to zero (at most 200)
+    assert 1000 < len(run.time) <= 1200 and run.fingers == 2
 
 
 def test_pictures_script_on_a_server_log(tmp_path):
