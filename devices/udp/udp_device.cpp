@@ -185,6 +185,7 @@ Status UdpDevice::read(double now, DeviceState& state) noexcept {
   ++counters_.reads;
   if (fd_ < 0) return Status::Error;
   bool fresh = false;
+  const udp::StatePacket rendered = newest_;  // the sample the state (and the replies) are of
   for (int i = 0; i < kMaxDatagramsPerRead; ++i) {
     sockaddr_in from{};
     socklen_t from_len = sizeof from;
@@ -232,6 +233,7 @@ Status UdpDevice::read(double now, DeviceState& state) noexcept {
   if (age(now, newest_) > opt_.stale_after) {
     --counters_.samples;
     ++counters_.dropped_stale;
+    newest_ = rendered;  // force packets keep echoing the sample their force is of
     return Status::NoData;
   }
   taken_time_ = now;

@@ -300,6 +300,12 @@ TEST(UdpDevice, ASampleOlderThanTheWatchdogIsStale) {
   EXPECT_EQ(send_and_read(dev, rig, 3, 0.0020, 10.0100, state), Status::NoData);
   EXPECT_EQ(dev.counters().dropped_stale, 1u);
   EXPECT_EQ(state.sequence, 2u);
+  // The reply echoes the sample its force is of, not the stale one.
+  ASSERT_EQ(dev.write(10.0101, DeviceCommand{}), Status::Ok);
+  udp::ForcePacket f;
+  const auto reply = rig.receive();
+  ASSERT_EQ(udp::parse_force_packet(reply.data(), reply.size(), 2, f), ParseResult::Ok);
+  EXPECT_EQ(f.sequence, 2u);
   // 4 ms late is within the watchdog.
   ASSERT_EQ(send_and_read(dev, rig, 4, 0.0100, 10.0141, state), Status::Ok);
   // A rig clock running 500 ppm slow for 10 s: 5 ms behind, and still fresh.
