@@ -1,12 +1,14 @@
 // hapticloth-server: loads a scene and runs the cloth simulation, headless or with a haptic
 // device (mock, udp, replay, ...) in the 1 kHz haptic loop.
 #include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 
 #include "cli_checks.hpp"
 
+#include "app/mesh_budget.hpp"
 #include "app/output_claim.hpp"
 #include "app/run_summary.hpp"
 #include "app/scene_file.hpp"
@@ -42,14 +44,19 @@ void add_run_options(CLI::App& cli, Args& a) {
       ->check(opts::positive(1e6, "s"));
   cli.add_flag("--headless", a.headless, "no device: step as fast as possible and print a summary");
   cli.add_flag("--json", a.json, "print the summary as one JSON object");
-  cli.add_option("--solver", a.solver, "override the scene's solver (pcg, cholmod)");
-  cli.add_option("--dt", a.dt, "override the scene's time step (s)")->check(opts::positive(1.0, "s"));
+  cli.add_option("--solver", a.solver, "override the scene's solver (pcg, cholmod, cholmod-supernodal)")
+      ->check(CLI::IsMember(app::kSolvers));
+  cli.add_option("--dt", a.dt, "override the scene's time step (s)")
+      ->check(opts::number_in(app::kMinDt, app::kMaxDt, false, "s"));
   cli.add_option("--alpha", a.alpha, "override the scene's alpha in [0.5, 1]")->check(opts::number_in(0.5, 1.0));
-  cli.add_option("--device", a.device, "haptic device driver (" + a.known_drivers + "); overrides [device] driver");
-  cli.add_option("--script", a.script, "mock: fingertip trajectory (.toml primitives or .csv time,finger,x,y,z)");
+  cli.add_option("--device", a.device, "haptic device driver (" + a.known_drivers + "); overrides [device] driver")
+      ->check(CLI::IsMember(devices::device_names()));
+  cli.add_option("--script", a.script, "mock: fingertip trajectory (.toml primitives or .csv time,finger,x,y,z)")
+      ->check(opts::non_empty());
   cli.add_option("--record", a.record, "mock/udp: write the device log (CSV) here")->check(opts::writable_file());
-  cli.add_option("--replay", a.replay, "replay: the device log to play back");
-  cli.add_option("--udp-bind", a.udp_bind, "udp: HOST:PORT to receive state packets on (default 127.0.0.1:47800)");
+  cli.add_option("--replay", a.replay, "replay: the device log to play back")->check(opts::non_empty());
+  cli.add_option("--udp-bind", a.udp_bind, "udp: HOST:PORT to receive state packets on (default 127.0.0.1:47800)")
+      ->check(opts::non_empty());
   cli.add_option("--clock", a.clock, "real time: tick on the loop's own deadlines (loop) or on each of the "
                                      "device's samples (device: udp); overrides [device] clock")
       ->check(CLI::IsMember({"loop", "device"}));
@@ -59,11 +66,15 @@ void add_run_options(CLI::App& cli, Args& a) {
 
 void add_transport_options(CLI::App& cli, Args& a) {
   transport::TransportOptions& tr = a.tr;
-  cli.add_option("--name", tr.server_name, "server name: key expressions hapticloth/<name>/... (default: default)");
-  a.zenoh_config = cli.add_option("--zenoh-config", tr.zenoh_config, "zenoh JSON5 config file (default: peer, listen tcp/127.0.0.1:7447, no scouting)");
-  a.zenoh_listen = cli.add_option("--zenoh-listen", tr.zenoh_listen, "zenoh endpoint to listen on without a config file (default tcp/127.0.0.1:7447)");
+  cli.add_option("--name", tr.server_name, "server name: key expressions hapticloth/<name>/... (default: default)")
+      ->check(opts::satisfies(transport::server_name_error, "NAME"));
+  a.zenoh_config = cli.add_option("--zenoh-config", tr.zenoh_config, "zenoh JSON5 config file (default: peer, listen tcp/127.0.0.1:7447, no scouting)")
+      ->check(opts::non_empty());
+  a.zenoh_listen = cli.add_option("--zenoh-listen", tr.zenoh_listen, "zenoh endpoint to listen on without a config file (default tcp/127.0.0.1:7447)")
+      ->check(opts::satisfies(transport::zenoh_endpoint_error, "ENDPOINT"));
   cli.add_flag("--no-zenoh", a.no_zenoh, "do not publish over zenoh");
-  cli.add_option("--lcm-url", tr.lcm_url, "also publish on this LCM provider (e.g. udpm://239.255.76.67:7667?ttl=0)");
+  cli.add_option("--lcm-url", tr.lcm_url, "also publish on this LCM provider (e.g. udpm://239.255.76.67:7667?ttl=0)")
+      ->check(opts::satisfies(transport::lcm_url_error, "URL"));
   cli.add_option("--lcm-log", tr.lcm_log, "LCM log of the run (every message); default out/<scene>.lcm")
       ->check(opts::writable_file());
   cli.add_flag("--no-lcm-log", a.no_lcm_log, "do not write the LCM log");
@@ -108,7 +119,12 @@ int run_headless_job(const Args& a, const app::Scene& scene) {
               << scene.integrator.dt << " s)\n";
     return 2;
   }
-  const app::RunSummary r = app::run_headless(scene, steps);
+  const std::atomic<bool>& stop = app::install_stop_signals();
+  app::wind_down_on_stop_signals();  // the steps stop at the next one, and the summary says so
+  app::RunSummary r = app::run_headless(scene, steps, &stop);
+  if (r.stopped_after_of)
+    r.stopped = std::string("by ") + (app::stop_signal() == SIGTERM ? "SIGTERM" : "SIGINT") + " after " +
+                std::to_string(r.steps) + " of " + std::to_string(r.stopped_after_of) + " steps";
   std::cout << (a.json ? r.to_json() + "\n" : r.to_text());
   return r.finite ? 0 : 1;
 }
@@ -129,6 +145,9 @@ bool choose_device(const Args& a, app::Scene& scene) {
     throw app::ConfigError("clock \"device\" (--clock or the scene's [device] clock) needs a device "
                            "that streams on its own clock (udp), not " + scene.device.driver);
   if (a.no_rt) scene.haptics.try_realtime = false;
+  const long triangles = static_cast<long>(scene.mesh.triangles.size());
+  if (const std::string e = app::haptic_budget_error(triangles); !e.empty())
+    throw app::ConfigError(scene.path + ": mesh: " + e);
   return true;
 }
 
@@ -155,13 +174,15 @@ int run_device_session(const Args& a, const app::Scene& scene) {
   app::OutputClaims claims;
   claims.claim(so.transport.lcm_log, a.tr.lcm_log.empty() ? "the LCM log (--lcm-log)" : "--lcm-log");
   claims.claim(scene.device.record_path, a.record.empty() ? "[device] record" : "--record");
-  so.stop = &app::install_stop_signals();
+  so.stop = &app::install_stop_signals();  // installed by main; the flag
   so.duration = a.duration;
   so.realtime = !a.fast;
   so.json = a.json;
   so.transport.zenoh = !a.no_zenoh;
   so.transport_required = a.zenoh_config->count() > 0 || a.zenoh_listen->count() > 0;
-  return app::serve(scene, so, std::cout);
+  const int rc = app::serve(scene, so, std::cout);  // throws before the session on bad set-up
+  claims.keep();
+  return rc;
 }
 
 }  // namespace
@@ -173,6 +194,8 @@ int main(int argc, char** argv) {
   add_transport_options(cli, a);
   if (const int rc = opts::parse(cli, argc, argv); rc >= 0) return rc;
 
+  // From here a signal stops the server (at once during set-up; app/stop_signal.hpp).
+  app::install_stop_signals();
   try {
     app::Scene scene = app::load_scene(a.scene_path);
     override_integrator(a, scene);

@@ -24,19 +24,27 @@ Percentiles percentiles(std::vector<double> v) {
   return p;
 }
 
-RunSummary run_headless(const Scene& scene, long steps) {
+RunSummary run_headless(const Scene& scene, long steps, const std::atomic<bool>* stop) {
   const cloth::ClothModel model = build_model(scene);
   auto integ = make_integrator(scene, model);
   cloth::ClothState s = cloth::rest_state(model);
-  std::vector<double> t_step(steps), t_asm(steps), t_solve(steps);
+  std::vector<double> t_step, t_asm, t_solve;
+  t_step.reserve(steps);
+  t_asm.reserve(steps);
+  t_solve.reserve(steps);
   double iters = 0;
+  const long asked = steps;
   const auto w0 = std::chrono::steady_clock::now();
-  for (long k = 0; k < steps; ++k) {
+  for (long k = 0; k < asked; ++k) {
+    if (stop && stop->load(std::memory_order_relaxed)) {
+      steps = k;
+      break;
+    }
     integ->step(s);
     const auto& tm = integ->last_timing();
-    t_step[k] = tm.total_ms;
-    t_asm[k] = tm.assemble_ms;
-    t_solve[k] = tm.solve_ms;
+    t_step.push_back(tm.total_ms);
+    t_asm.push_back(tm.assemble_ms);
+    t_solve.push_back(tm.solve_ms);
     iters += tm.iterations;
   }
   RunSummary r;
@@ -51,6 +59,7 @@ RunSummary run_headless(const Scene& scene, long steps) {
   r.dt = scene.integrator.dt;
   r.alpha = scene.integrator.alpha;
   r.steps = steps;
+  if (steps < asked) r.stopped_after_of = asked;
   r.simulated_s = s.time;
   r.step_ms = percentiles(t_step);
   r.assemble_ms = percentiles(t_asm);
@@ -104,6 +113,7 @@ std::string RunSummary::to_json() const {
   j["finite"] = finite;
   j["wall_s"] = wall_s;
   j["events"] = events_json(events);
+  j["stopped"] = stopped_after_of ? nlohmann::json(stopped) : nlohmann::json(nullptr);
   return j.dump();
 }
 
@@ -132,6 +142,7 @@ std::string RunSummary::to_text() const {
      << ", solver " << events.solver_not_converged + events.solver_error << ", not-SPD "
      << events.not_positive_definite << ", energy " << events.energy_explosions << ", retries "
      << events.retries << ", restores " << events.restores << ")\n";
+  if (stopped_after_of) os << "stopped          " << stopped << "\n";
   return os.str();
 }
 

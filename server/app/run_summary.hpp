@@ -1,6 +1,7 @@
 // Headless runs of a scene and their summary (shared by the server and the benchmark).
 #pragma once
 
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,10 @@ struct RunSummary {
   double wall_s = 0;
   cloth::IntegratorEvents events;
   bool finite = true;
+  /// A stop signal ended the run after `steps` of these (0: it ran them all); `stopped` says by
+  /// what ("by SIGTERM after 1234 of 10000 steps"), filled by the caller that knows the signal.
+  long stopped_after_of = 0;
+  std::string stopped;
   std::string to_json() const;
   std::string to_text() const;
 };
@@ -39,7 +44,7 @@ struct RunSummary {
 /// "events" and the benchmarks').
 nlohmann::json events_json(const cloth::IntegratorEvents& e);
 
-/// Steps the scene headless `steps` times, as fast as possible.
-RunSummary run_headless(const Scene& scene, long steps);
+/// Steps the scene headless `steps` times, as fast as possible; fewer if `*stop` turns true.
+RunSummary run_headless(const Scene& scene, long steps, const std::atomic<bool>* stop = nullptr);
 
 }  // namespace hapticloth::app

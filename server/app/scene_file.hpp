@@ -13,6 +13,12 @@
 
 namespace hapticloth::app {
 
+/// The solvers a scene (integrator.solver) or --solver names.
+inline const std::vector<std::string> kSolvers = {"pcg", "cholmod", "cholmod-supernodal"};
+/// integrator.dt and --dt: from 1 us (a thousandth of the haptic period; shorter steps round
+/// the velocity update away) to 1 s.
+constexpr double kMinDt = 1e-6, kMaxDt = 1.0;
+
 struct Scene {
   std::string path;
   std::string name;

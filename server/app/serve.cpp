@@ -24,6 +24,7 @@
 #include "remote/command_sink.hpp"
 #include "transport/foxglove_sink.hpp"
 #include "transport/hub.hpp"
+#include "transport/zenoh_session.hpp"
 
 namespace hapticloth::app {
 
@@ -224,12 +225,13 @@ std::string foxglove_counts(const transport::FoxgloveSink& fox) {
   return s;
 }
 
-// The Hub that publishes the session over zenoh / LCM and feeds a remote device; without
-// zenoh (and says so) when its endpoint cannot be opened and zenoh is not required.
-std::unique_ptr<transport::Hub> connect_transport(const Scene& scene, const ServeOptions& opt,
-                                                  const haptics::SessionConfig& sc,
-                                                  devices::DeviceHandle& dev, haptics::Session& session,
-                                                  DropReporter& drops, std::ostream& out) {
+// The Hub that publishes the session over zenoh / LCM and feeds a remote device, opened before
+// the preroll: a bad endpoint, config file or Foxglove host, or a port in use, is exit 2 before
+// anything runs. Without zenoh (and says so) when only its endpoint cannot be opened and zenoh
+// is not required.
+std::unique_ptr<transport::Hub> open_transport(const Scene& scene, const ServeOptions& opt,
+                                               devices::DeviceHandle& dev, std::ostream& out) {
+  const haptics::SessionConfig& sc = scene.haptics;  // what the Hub reads the plan leaves as is
   transport::SceneInfo info;
   transport::set_cloth(info, scene.mesh, scene.material);
   info.scene_name = scene.name;
@@ -242,20 +244,13 @@ std::unique_ptr<transport::Hub> connect_transport(const Scene& scene, const Serv
   std::unique_ptr<transport::Hub> hub;
   try {
     hub = transport::make_hub(to, info);
-  } catch (const transport::FoxgloveOpenError&) {
-    throw;  // asked for by name: never dropped
-  } catch (const std::runtime_error& e) {
+  } catch (const transport::ZenohOpenError& e) {
     if (opt.transport_required || !to.zenoh) throw;
     std::cerr << "hapticloth-server: " << e.what() << "; running without zenoh\n";
     to.zenoh = false;
     hub = transport::make_hub(to, info);
   }
   if (auto* sink = dynamic_cast<devices::RemoteCommandSink*>(&dev.device())) hub->set_command_sink(sink);
-  drops.dev = &dev.device();
-  drops.hub = hub.get();
-  session.add_observer(hub.get());
-  session.add_observer(&drops);
-  hub->post_event("started", "scene " + scene.name + ", device " + dev.info().name);
   if (!opt.json) {
     const auto& o = hub->options();
     out << "transport        zenoh " << (o.zenoh && to.zenoh ? "hapticloth/" + o.server_name + "/* on " +
@@ -268,6 +263,16 @@ std::unique_ptr<transport::Hub> connect_transport(const Scene& scene, const Serv
           << ", MCAP " << (o.mcap.empty() ? "off" : o.mcap) << "\n";
   }
   return hub;
+}
+
+// The Hub (and the dropped-packet reporter) observe the session; the `started` event.
+void attach(const Scene& scene, devices::DeviceHandle& dev, haptics::Session& session,
+            transport::Hub& hub, DropReporter& drops) {
+  drops.dev = &dev.device();
+  drops.hub = &hub;
+  session.add_observer(&hub);
+  session.add_observer(&drops);
+  hub.post_event("started", "scene " + scene.name + ", device " + dev.info().name);
 }
 
 // Prints what runs, runs the session, and returns how a stop signal ended it ("" if none).
@@ -370,12 +375,13 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
 }
 
 // 1 if the device failed during the session (a driver Error turned its handle Failed), its
-// record could not be written or the MCAP file not finished, each said on stderr; else 0.
+// record could not be written, or the transports lost something (the MCAP file not finished,
+// LCM log messages not written), each said on stderr; else 0.
 int exit_status(const devices::DeviceHandle& dev, const haptics::Session& session,
-                const std::string& mcap_error) {
+                const std::string& transport_lost) {
   int rc = 0;
-  if (!mcap_error.empty()) {
-    std::cerr << "hapticloth-server: " << mcap_error << "\n";
+  if (!transport_lost.empty()) {
+    std::cerr << "hapticloth-server: " << transport_lost << "\n";
     rc = 1;
   }
   if (dev.failed_since_activation()) {
@@ -399,16 +405,18 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   // The device first (a UDP rig can start streaming while the cloth settles).
   devices::DeviceHandle dev(opt.make_device ? opt.make_device(scene.device) : devices::make_device(scene.device));
   if (const std::string e = dev.configure(); !e.empty()) throw ConfigError("device: " + e);
+  const auto hub = open_transport(scene, opt, dev, out);
+  wind_down_on_stop_signals();  // set-up done: from the preroll on, a signal winds the run down
   const Plan p = plan(scene, model, dev, opt.realtime, opt.stop);
   haptics::Session session(model, scene.integrator, cloth::make_solver(scene.solver, scene.pcg),
                            p.state, dev, p.session);
   session.set_stop_flag(opt.stop);
   DropReporter drops;
-  const auto hub = connect_transport(scene, opt, p.session, dev, session, drops, out);
+  attach(scene, dev, session, *hub, drops);
   const std::string stopped = run(scene, opt, model, dev, p, duration, session, *hub, out);
-  const std::string mcap_error = hub->finish();  // everything published, the MCAP file finished
+  const std::string lost = hub->finish();  // everything published, the log closed, the MCAP file finished
   report(scene, opt, dev, p, session, *hub, stopped, out);
-  return exit_status(dev, session, mcap_error);
+  return exit_status(dev, session, lost);
 }
 
 }  // namespace hapticloth::app

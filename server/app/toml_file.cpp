@@ -75,9 +75,28 @@ double TomlFile::number(const toml::table& t, const std::string& prefix, const s
   return v;
 }
 
-long long TomlFile::integer(const toml::table& t, const std::string& prefix,
-                            const std::string& key, std::optional<long long> fallback) const {
-  return scalar<long long>(*this, t, prefix, key, fallback, "an integer");
+double TomlFile::number_in(const toml::table& t, const std::string& prefix, const std::string& key,
+                           std::optional<double> fallback, double lo, double hi, const std::string& unit,
+                           bool open_lo) const {
+  const double v = number(t, prefix, key, fallback);
+  if ((open_lo ? v <= lo : v < lo) || v > hi) {
+    std::ostringstream os;
+    os << "must be " << (open_lo ? "> " : ">= ") << lo << " and <= " << hi << (unit.empty() ? "" : " " + unit)
+       << ", not " << v;
+    fail(t.get(key), join(prefix, key), os.str());
+  }
+  return v;
+}
+
+long long TomlFile::integer(const toml::table& t, const std::string& prefix, const std::string& key,
+                            std::optional<long long> fallback, long long lo, long long hi) const {
+  // toml++ refuses integers past 2^63 itself (invalid TOML); in range of long long, the callers'
+  // ints would wrap silently past 2^31, so every integer key has its range.
+  const long long v = scalar<long long>(*this, t, prefix, key, fallback, "an integer");
+  if (v < lo || v > hi)
+    fail(t.get(key), join(prefix, key),
+         "must be an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], not " + std::to_string(v));
+  return v;
 }
 
 bool TomlFile::boolean(const toml::table& t, const std::string& prefix, const std::string& key,

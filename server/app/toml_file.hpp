@@ -35,8 +35,14 @@ class TomlFile {
   const toml::node* find(const toml::table& t, const std::string& key) const;
   double number(const toml::table& t, const std::string& prefix, const std::string& key,
                 std::optional<double> fallback = std::nullopt) const;
+  /// A number in [lo, hi] (> lo with `open_lo`); outside, the key is named with the range in
+  /// `unit` ("m", "Hz").
+  double number_in(const toml::table& t, const std::string& prefix, const std::string& key,
+                   std::optional<double> fallback, double lo, double hi, const std::string& unit,
+                   bool open_lo = false) const;
+  /// An integer in [lo, hi]; anything outside (also past 2^31 or 2^63) names the key and range.
   long long integer(const toml::table& t, const std::string& prefix, const std::string& key,
-                    std::optional<long long> fallback = std::nullopt) const;
+                    std::optional<long long> fallback, long long lo, long long hi) const;
   bool boolean(const toml::table& t, const std::string& prefix, const std::string& key,
                std::optional<bool> fallback = std::nullopt) const;
   std::string string(const toml::table& t, const std::string& prefix, const std::string& key,

@@ -5,15 +5,15 @@
 namespace hapticloth::transport {
 
 namespace {
-// The options and the device the Hub is built for, or throws std::runtime_error.
+// The options and the device the Hub is built for, or throws std::invalid_argument (bad input,
+// never the fall-back to running without zenoh that a zenoh endpoint in use gets).
 const TransportOptions& checked(const TransportOptions& opt, const SceneInfo& scene) {
-  if (opt.server_name.empty() || opt.server_name.find_first_of("/*$?#") != std::string::npos)
-    throw std::runtime_error("transport: server name '" + opt.server_name +
-                             "' must be non-empty without / * $ ? #");
+  if (const std::string e = server_name_error(opt.server_name); !e.empty())
+    throw std::invalid_argument("transport: server name " + e);
   if (!(opt.cloth_rate > 0.0) || !(opt.haptic_batch > 0.0))
-    throw std::runtime_error("transport: cloth rate and haptic batch must be positive");
+    throw std::invalid_argument("transport: cloth rate and haptic batch must be positive");
   if (const std::string e = devices::validate(scene.device); !e.empty())
-    throw std::runtime_error("transport: device " + e);
+    throw std::invalid_argument("transport: device " + e);
   return opt;
 }
 }  // namespace

@@ -27,6 +27,7 @@ HubTransports::HubTransports(const TransportOptions& opt, Inputs in) {
     lcm_->start();
   }
   if (!opt.lcm_log.empty()) log_ = std::make_unique<LcmBus>(lcm_log_url(opt.lcm_log));
+  log_path_ = opt.lcm_log;
   if (!opt.foxglove.empty() || !opt.mcap.empty())
     fox_ = std::make_unique<FoxgloveSink>(
         FoxgloveOptions{opt.foxglove, opt.mcap, opt.server_name, opt.finger_radius});
@@ -52,7 +53,11 @@ std::string HubTransports::close() {
   }
   for (auto& p : zpub_) p.reset();
   zenoh_.reset();
-  return fox_error_;
+  std::string lost = fox_error_;
+  if (const std::uint64_t n = log_failed_.load(); n > 0)
+    lost += (lost.empty() ? "" : "; ") + std::string("LCM log ") + log_path_ + ": " + std::to_string(n) +
+            " messages could not be written (the disk is full or the file failed)";
+  return lost;
 }
 
 bool HubTransports::wanted(Topic t) const {
@@ -70,13 +75,13 @@ void HubTransports::send(Topic t, const std::vector<std::uint8_t>& bytes) {
   const int i = static_cast<int>(t);
   if (zpub_[i] && zpub_[i]->matching()) zpub_[i]->put(bytes.data(), bytes.size());
   if (lcm_) lcm_->publish(channel_[i], bytes.data(), bytes.size());
-  if (log_) log_->publish(channel_[i], bytes.data(), bytes.size());
+  if (log_ && !log_->publish(channel_[i], bytes.data(), bytes.size())) log_failed_.fetch_add(1);
   if (fox_ && fox_->wants(t)) fox_->send(t, bytes.data(), bytes.size(), wall_utime());
   published_[i].fetch_add(1, std::memory_order_relaxed);
 }
 
 void HubTransports::log_command(const std::vector<std::uint8_t>& bytes) {
-  if (log_) log_->publish(lcm_channel("trajectory"), bytes.data(), bytes.size());
+  if (log_ && !log_->publish(lcm_channel("trajectory"), bytes.data(), bytes.size())) log_failed_.fetch_add(1);
 }
 
 }  // namespace hapticloth::transport

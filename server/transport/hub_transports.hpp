@@ -44,7 +44,8 @@ class HubTransports {
   /// No zenoh input callback runs once this returns.
   void close_inputs();
   /// Closes everything (LCM first: its receive thread ends here; the MCAP file is finished).
-  /// Also done by the destructor. Returns "" or why the MCAP file could not be finished.
+  /// Also done by the destructor. Returns "" or what was lost: the MCAP file not finished, LCM
+  /// log messages not written (a full disk, a failing file).
   std::string close();
 
   /// True if some transport wants topic t now (a matching zenoh subscriber, an LCM provider or
@@ -72,6 +73,8 @@ class HubTransports {
   std::unique_ptr<LcmBus> lcm_, log_;
   std::unique_ptr<FoxgloveSink> fox_;
   std::string fox_error_;  // the recording could not be finished (close)
+  std::string log_path_;
+  std::atomic<std::uint64_t> log_failed_{0};  // LCM log messages the file provider could not write
   std::array<std::string, kTopics> channel_;
   std::array<std::atomic<std::uint64_t>, kTopics> published_{}, skipped_{};
 };

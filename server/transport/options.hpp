@@ -22,4 +22,15 @@ struct TransportOptions {
   double max_command_speed = 1.0;       ///< m/s, fastest fingertip a trajectory command may ask
 };
 
+// Checks of the options' values, each "" or why the value is wrong (without the option's name,
+// which the caller adds). They are the checks the transports' constructors would make, run on
+// the command line so that a bad value is exit 2 before the cloth settles.
+
+/// A name that is one chunk of a key expression: non-empty, without / * $ ? #.
+std::string server_name_error(const std::string& name);
+/// PROTOCOL/ADDRESS[?METADATA][#CONFIG], and HOST:PORT for tcp and udp (zenoh's endpoint form).
+std::string zenoh_endpoint_error(const std::string& endpoint);
+/// PROVIDER://[NETWORK][?OPTIONS] with a provider LCM has (udpm, mpudpm, tcpq, file, memq).
+std::string lcm_url_error(const std::string& url);
+
 }  // namespace hapticloth::transport

@@ -8,10 +8,24 @@
 namespace hapticloth::transport {
 
 namespace {
+// zenoh's message without the Rust source locations it appends (" at /root/.cargo/.../tcp.rs:61."):
+// they say where in zenoh, not what the user gave.
+std::string without_source_paths(std::string m) {
+  for (std::size_t at; (at = m.find(" at /")) != std::string::npos;) {
+    const std::size_t rs = m.find(".rs:", at);
+    if (rs == std::string::npos) break;
+    std::size_t end = m.find_first_not_of("0123456789", rs + 4);
+    if (end != std::string::npos && m[end] == '.') ++end;
+    m.erase(at, (end == std::string::npos ? m.size() : end) - at);
+  }
+  while (!m.empty() && (m.back() == '\n' || m.back() == ' ')) m.pop_back();
+  return m;
+}
+
 [[noreturn]] void fail(const std::string& what) {
-  char buf[512];
+  char buf[1024];
   hz_last_error(buf, sizeof buf);
-  throw std::runtime_error("zenoh: " + what + ": " + buf);
+  throw ZenohOpenError("zenoh: " + what + ": " + without_source_paths(buf));
 }
 
 void answer_query(const HzQuery* q, const char*, std::size_t, void* ctx) {
@@ -35,7 +49,7 @@ std::string default_zenoh_config(const std::string& listen) {
 ZenohSession::ZenohSession(const std::string& config_path, const std::string& listen) {
   if (!config_path.empty()) {
     if (std::string e = devices::check_input_file(config_path, devices::kMaxConfigBytes); !e.empty())
-      throw std::runtime_error("zenoh config " + e);
+      throw ZenohOpenError("zenoh config " + e);
     s_ = hz_open_file(config_path.c_str());
     if (!s_) fail("open with " + config_path);
   } else {

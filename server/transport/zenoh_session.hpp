@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,11 @@ namespace hapticloth::transport {
 /// The configuration used when no file is given: peer mode, listen on `listen`, multicast and
 /// gossip scouting off (nothing leaves the host unless a client connects to `listen`).
 std::string default_zenoh_config(const std::string& listen);
+
+/// A session that could not be opened: a bad or unreadable config, an endpoint in use.
+struct ZenohOpenError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
 
 class ZenohSession {
  public:

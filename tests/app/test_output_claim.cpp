@@ -60,3 +60,35 @@ TEST(OutputClaim, CreatesAMissingFileAndRefusesOneItCannotWrite) {
               std::string::npos) << e.what();
   }
 }
+
+// Issue 36 item 9: /dev/full as a log was taken and the session "succeeded" with nothing written.
+TEST(OutputClaim, RefusesWhatIsNotARegularFile) {
+  app::OutputClaims c;
+  try {
+    c.claim("/dev/full", "--lcm-log");
+    FAIL() << "/dev/full was claimed as a log";
+  } catch (const app::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("--lcm-log /dev/full: not a regular file"), std::string::npos) << e.what();
+  }
+}
+
+// A start that fails after the claims (a bad endpoint) leaves no empty file behind; a file that
+// was there before stays, and a session that ran keeps what it wrote.
+TEST(OutputClaim, AFailedStartRemovesOnlyTheFilesItCreated) {
+  const std::string made = test::temp_path(".csv"), there = test::temp_path(".lcm"),
+                    kept = test::temp_path(".csv");
+  std::ofstream(there) << "an older log";
+  {
+    app::OutputClaims c;
+    c.claim(made, "--record");
+    c.claim(there, "--lcm-log");
+  }
+  EXPECT_FALSE(std::ifstream(made).good());
+  EXPECT_EQ(read_all(there), "an older log");
+  {
+    app::OutputClaims c;
+    c.claim(kept, "--record");
+    c.keep();
+  }
+  EXPECT_TRUE(std::ifstream(kept).good());
+}

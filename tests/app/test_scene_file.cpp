@@ -166,14 +166,41 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
       {"DeviceClockOfAPolledDevice", kScene + "\n[device]\ndriver = \"mock\"\nclock = \"device\"\n", 19,
        {"key 'device.clock'", "streams on its own clock", "not mock"}},
       {"AlphaOutOfRange", with_line(kScene, 14, "alpha = 0.3"), 14, {"key 'integrator.alpha'", "[0.5, 1]"}},
-      {"ZeroTimeStep", with_line(kScene, 13, "dt = 0"), 13, {"key 'integrator.dt'", "must be > 0"}},
+      {"ZeroTimeStep", with_line(kScene, 13, "dt = 0"), 13, {"key 'integrator.dt'", "must be >= 1e-06"}},
+      {"TimeStepOf1e-300", with_line(kScene, 13, "dt = 1e-300"), 13, {"key 'integrator.dt'", "must be >= 1e-06"}},
       {"UnknownSolver", with_line(kScene, 15, "solver = \"lu\""), 15, {"key 'integrator.solver'", "\"pcg\""}},
       {"UnknownPreconditioner", kScene + "pcg_preconditioner = \"ilu\"\n", 16,
        {"key 'integrator.pcg_preconditioner'", "\"ssor\" or \"block-jacobi\""}},
       {"OmegaOutOfRange", kScene + "pcg_ssor_omega = 2.0\n", 16, {"key 'integrator.pcg_ssor_omega'", "[1, 2)"}},
       {"NegativeMatrixRefresh", kScene + "matrix_refresh = -0.1\n", 16, {"key 'integrator.matrix_refresh'", "[0, 1)"}},
       {"UnknownMeshType", with_line(kScene, 5, "type = \"sphere\""), 5, {"key 'mesh.type'", "\"grid\" or \"obj\""}},
-      {"ZeroResolution", with_line(kScene, 7, "resolution = [0, 5]"), 7, {"key 'mesh.resolution'", "[1, 2000]"}},
+      {"ZeroResolution", with_line(kScene, 7, "resolution = [0, 5]"), 7, {"key 'mesh.resolution'", "positive integers"}},
+      // Issue 36 item 7: 8 million triangles, beyond half of any machine this runs on (24 GiB
+      // here): refused before the mesh is built, with the figures the limit comes from.
+      {"ResolutionBeyondMemory", with_line(kScene, 7, "resolution = [2000, 2000]"), 7,
+       {"key 'mesh.resolution'", "8000000 triangles need about", "GiB", "half of this machine's"}},
+      // Issue 36 items 10-12: integers past 2^32, nonsense values, errors that named the wrong thing.
+      {"FingersPast2To32", kScene + "\n[device]\ndriver = \"mock\"\nfingers = 4294967298\n", 19,
+       {"key 'device.fingers'", "[2, 5]", "4294967298"}},
+      {"PcgIterationsPast2To32", kScene + "pcg_max_iterations = 4294967297\n", 16,
+       {"key 'integrator.pcg_max_iterations'", "4294967297"}},
+      {"PrerollOf1e18", kScene + "\n[haptics]\npreroll = 1e18\n", 18, {"key 'haptics.preroll'", "<= 600 s"}},
+      {"HapticRateOf1MHz", kScene + "\n[haptics]\nrate = 1e6\n", 18, {"key 'haptics.rate'", "<= 10000 Hz"}},
+      {"HapticRateOf1mHz", kScene + "\n[haptics]\nrate = 1e-3\n", 18, {"key 'haptics.rate'", ">= 100"}},
+      {"FingerRadiusOf10m", kScene + "\n[haptics]\nfinger_radius = 10\n", 18, {"key 'haptics.finger_radius'", "<= 0.05 m"}},
+      {"GateMaxForceOf1e308", kScene + "\n[haptics]\nmax_force = 1e308\n", 18, {"key 'haptics.max_force'", "<= 100 N"}},
+      {"DeviceMaxForceOf1e308", kScene + "\n[device]\ndriver = \"mock\"\nmax_force = 1e308\n", 19,
+       {"key 'device.max_force'", "<= 100 N"}},
+      {"WorkspaceOf1e308", kScene + "\n[device]\ndriver = \"mock\"\nworkspace_max = [1e308, 1, 1]\n", 19,
+       {"key 'device.workspace_max'", "within 10 m"}},
+      {"InvertedPinsBox", with_line(kScene, 10, "box_min = [1, 1, 1]\nbox_max = [0, 0, 0]"), 11,
+       {"key 'pins.box_max'", ">= box_min on every axis"}},
+      {"PinsBoxWithNoVertex", with_line(kScene, 10, "box_min = [5, 5, 5]\nbox_max = [6, 6, 6]"), 10,
+       {"key 'pins.box_min'", "holds no vertex"}},
+      {"SizeOf1e308", with_line(kScene, 6, "size = [1e308, 1e308]"), 6, {"key 'mesh.size'", "<= 100 m"}},
+      {"EmptyMaterial", with_line(kScene, 2, "material = \"\""), 2, {"key 'material'", "must name a material file"}},
+      {"NameOutsideOut", with_line(kScene, 1, "name = \"../../escape\""), 1, {"key 'name'", "out/<name>.lcm"}},
+      {"NameWithASlash", with_line(kScene, 1, "name = \"a/b\""), 1, {"key 'name'", "without /"}},
       {"UnknownPinEdge", with_line(kScene, 10, "edges = [\"middle\"]"), 10, {"key 'pins.edges'", "'middle'"}},
       {"PinVertexOutOfRange", with_line(kScene, 10, "vertices = [100000]"), 10,
        {"key 'pins.vertices'", "100000", "[0, 25)"}},
@@ -302,6 +329,15 @@ TEST_F(SceneFileTest, ObjSceneBadWeave) {
   write("meshes/strip.obj", kStripObj);
   const auto path = write("scenes/strip.toml", obj_scene("weave = \"uv\"\n"));
   expect_config_error([&] { load_scene(path); }, {path, at_line(5), "key 'mesh.weave'"});
+}
+
+// Issue 36 item 12: a zero scale was blamed on the first OBJ face ("degenerate"); it is the
+// scene's key.
+TEST_F(SceneFileTest, ObjSceneZeroScaleNamesTheKey) {
+  write("cloth.toml", kMaterial);
+  write("meshes/strip.obj", kStripObj);
+  const auto path = write("scenes/strip.toml", obj_scene("scale = 0\n"));
+  expect_config_error([&] { load_scene(path); }, {path, at_line(5), "key 'mesh.scale'", "must be > 0"});
 }
 
 TEST_F(SceneFileTest, ObjFaceWithoutTextureCoordinates) {

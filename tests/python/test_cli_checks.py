@@ -10,6 +10,9 @@ Also: `hapticloth-bench --help` lists the `udp` and `transport` subcommands.
 
 from __future__ import annotations
 
+import re
+import shutil
+import socket
 import subprocess
 from pathlib import Path
 
@@ -37,7 +40,9 @@ def base_args(program: str, option: str, tmp: Path, log: Path | None) -> list[st
     """A valid, short command line of `program` (with `option` left for the case to give), and
     the outputs it would write."""
     if program == "hapticloth-server":
-        args = ["--scene", SCENE, "--device", "mock", "--fast", "--no-zenoh", "--no-lcm-log"]
+        args = ["--scene", SCENE, "--device", "mock", "--fast"]
+        args += [] if option == "--zenoh-listen" else ["--no-zenoh"]
+        args += [] if option == "--lcm-log" else ["--no-lcm-log"]
         args += [] if option == "--record" else ["--record", tmp / "record.csv"]
         return args if option == "--duration" else args + ["--duration", "0.5"]
     if program == "hapticloth-bench step":
@@ -82,6 +87,18 @@ BAD = [
     case("hapticloth-server", "--record", "{tmp}/missing/record.csv"),
     case("hapticloth-server", "--clock", "gps"),
     case("hapticloth-server", UNKNOWN),
+    # Issue 36 items 8, 9 and 11: network options, output paths and values that ran (or failed
+    # only after the preroll) before.
+    case("hapticloth-server", "--dt", "1e-300"),
+    case("hapticloth-server", "--solver", ""),
+    case("hapticloth-server", "--device", ""),
+    case("hapticloth-server", "--record", ""),
+    case("hapticloth-server", "--lcm-log", ""),
+    case("hapticloth-server", "--lcm-log", "/dev/full"),
+    case("hapticloth-server", "--zenoh-listen", "garbage"),
+    case("hapticloth-server", "--lcm-url", "nosuch://x"),
+    case("hapticloth-server", "--foxglove", "nohost.invalid:1"),
+    case("hapticloth-server", "--name", "a/b"),
     # hapticloth-bench
     case("hapticloth-bench step", "--dt", "-1"),
     case("hapticloth-bench step", "--pcg-tolerance", "-1"),
@@ -161,3 +178,45 @@ def test_the_command_lines_run_without_the_bad_option(program, tmp_path, request
                "hapticloth-render": "snapshot.png"}.get(exe)
     if written:
         assert (out / written).is_file() and (out / written).stat().st_size > 0
+
+
+@pytest.fixture
+def held_tcp_port():
+    """A TCP port on 127.0.0.1 that this test listens on: zenoh cannot listen there."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        yield s.getsockname()[1]
+
+
+# Issue 36 item 8: what only opening the transport finds (a port in use, a host that does not
+# resolve, a zenoh config zenoh refuses) was exit 2 after the whole preroll. With a 600 s
+# preroll (over a minute of steps even as fast as possible), an error that waited for it would
+# not come within the 60 s this allows.
+@pytest.mark.parametrize("kind", ["zenoh port in use", "foxglove host", "zenoh config"])
+def test_transport_errors_come_before_the_preroll(kind, held_tcp_port, tmp_path):
+    for folder in ("scenes", "materials"):  # the scene with its script and material beside it
+        shutil.copytree(REPO / "tools" / folder, tmp_path / folder)
+    scene = tmp_path / "scenes" / "long_preroll.toml"
+    scene.write_text(re.sub(r"(?m)^preroll = [0-9.]+", "preroll = 600.0", SCENE.read_text()))
+    option, value, words = {
+        "zenoh port in use": ("--zenoh-listen", f"tcp/127.0.0.1:{held_tcp_port}", "in use"),
+        "foxglove host": ("--foxglove", "nohost.invalid:1", "nohost.invalid"),
+        "zenoh config": ("--zenoh-config", str(tmp_path / "bad.json5"), "bad.json5"),
+    }[kind]
+    (tmp_path / "bad.json5").write_text("{ mode: \"nonsense\" }\n")
+    out = tmp_path / "out"
+    out.mkdir()
+    args = ["--scene", scene, "--device", "mock", "--fast", "--duration", "0.5",
+            "--record", out / "record.csv", "--lcm-log", out / "session.lcm", option, value]
+    try:
+        r = subprocess.run([str(wait_for_program("hapticloth-server")), *map(str, args)], cwd=out,
+                           capture_output=True, text=True, timeout=60)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"{option} {value}: no error within 60 s of a 600 s preroll")
+    said = f"exit {r.returncode}\nstdout: {r.stdout[-1000:]}\nstderr: {r.stderr[-1000:]}"
+    assert r.returncode == 2, said
+    assert words in r.stderr, said
+    assert ".rs:" not in r.stderr and ".cargo" not in r.stderr, said  # zenoh's source paths
+    assert "stage" not in r.stdout, said  # nothing planned, nothing settled
+    assert sorted(p.name for p in out.iterdir()) == [], said  # the claimed record and log removed

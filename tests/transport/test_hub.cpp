@@ -107,7 +107,7 @@ TEST(Hub, RejectsABadServerName) {
   TransportOptions o = options();
   o.zenoh = false;
   o.server_name = "a/b";
-  EXPECT_THROW(Hub(o, small_scene()), std::runtime_error);
+  EXPECT_THROW(Hub(o, small_scene()), std::invalid_argument);
 }
 
 TEST(Hub, RejectsADeviceThatFailsValidation) {
@@ -115,7 +115,7 @@ TEST(Hub, RejectsADeviceThatFailsValidation) {
   o.zenoh = false;
   SceneInfo s = small_scene();
   s.device.fingers = 1;  // a pinch needs two
-  EXPECT_THROW(Hub(o, s), std::runtime_error);
+  EXPECT_THROW(Hub(o, s), std::invalid_argument);
 }
 
 TEST(Hub, SkipsEverythingWithoutSubscribersOrLog) {

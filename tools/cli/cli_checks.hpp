@@ -41,14 +41,18 @@ inline CLI::Validator positive(double hi, const std::string& unit = "") {
   return number_in(0.0, hi, true, unit);
 }
 
-/// A file the program will write: its folder exists, and it is not a folder itself (checked
-/// before any work, so that a long run does not end in "cannot write").
+/// A file the program will write: a path, its folder exists, and what is there is a regular file
+/// or nothing (not a folder, /dev/full or a FIFO); checked before any work, so that a long run
+/// does not end in "cannot write".
 inline CLI::Validator writable_file() {
   return CLI::Validator(
       [](std::string& path) -> std::string {
         namespace fs = std::filesystem;
         std::error_code ec;
+        if (path.empty()) return "needs a path (an empty one names no file)";
         if (fs::is_directory(path, ec)) return path + " is a folder, not a file to write";
+        if (fs::exists(path, ec) && !fs::is_regular_file(path, ec))
+          return path + " is not a regular file (a device or FIFO); give a file to write";
         const fs::path dir = fs::path(path).parent_path();
         if (!dir.empty() && !fs::is_directory(dir, ec))
           return "cannot write " + path + ": the folder " + dir.string() + " does not exist";
@@ -69,6 +73,18 @@ inline CLI::Validator new_file() {
         return "";
       },
       "NEW_FILE");
+}
+
+/// A value that `why_wrong` accepts: it returns "" or why the value is wrong.
+template <class F>
+CLI::Validator satisfies(F why_wrong, const std::string& form) {
+  return CLI::Validator([why_wrong](std::string& v) -> std::string { return why_wrong(v); }, form);
+}
+
+/// A non-empty value (an empty one would silently mean "the default").
+inline CLI::Validator non_empty() {
+  return satisfies([](const std::string& v) { return v.empty() ? std::string("must not be empty") : ""; },
+                   "TEXT");
 }
 
 /// Parses; on a usage error prints CLI11's message and returns 2 (0 for --help). Returns -1
