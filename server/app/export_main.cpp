@@ -2,6 +2,7 @@
 // MCAP file of the Foxglove channels, the same ones `hapticloth-server --mcap` writes
 // (transport/foxglove_sink.hpp), each message at its log event's time.
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <map>
@@ -32,17 +33,23 @@ std::map<std::string, transport::Topic> hub_channels() {
 struct Counts {
   std::uint64_t events = 0;
   std::map<std::string, std::uint64_t> other;  // channels the export does not carry
+  std::string damaged;  // where the log stops making sense (a cut-off or corrupt tail), or ""
 };
 
-// Every event of the log into the sink. Throws std::runtime_error naming the log.
+// Every readable event of the log into the sink. LCM's reader stops at the first event it
+// cannot read (a log cut off mid-write, a corrupt length) as it stops at the end: where it
+// stopped short of the file's size, the rest is damaged. Throws std::runtime_error naming the
+// log when nothing at all can be read.
 Counts export_log(const std::string& path, transport::FoxgloveSink& sink) {
   if (std::string e = devices::check_input_file(path, 0); !e.empty()) throw std::runtime_error(e);
   lcm_eventlog_t* log = lcm_eventlog_create(path.c_str(), "r");
   if (!log) throw std::runtime_error(path + ": cannot open the LCM log");
   const auto channels = hub_channels();
   Counts c;
+  long read_to = 0;  // the end of the last whole event
   while (lcm_eventlog_event_t* e = lcm_eventlog_read_next_event(log)) {
     ++c.events;
+    read_to = std::ftell(log->f);
     const auto it = channels.find(std::string(e->channel, e->channellen));
     if (it == channels.end())
       ++c.other[std::string(e->channel, e->channellen)];
@@ -50,6 +57,12 @@ Counts export_log(const std::string& path, transport::FoxgloveSink& sink) {
       sink.send(it->second, static_cast<const std::uint8_t*>(e->data), e->datalen, e->timestamp);
     lcm_eventlog_free_event(e);
   }
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(path, ec);
+  if (!ec && read_to >= 0 && static_cast<std::uintmax_t>(read_to) < size)
+    c.damaged = path + ": the log cannot be read past byte " + std::to_string(read_to) + " of " +
+                std::to_string(size) + " (cut off or corrupt); exported the " + std::to_string(c.events) +
+                " events before it";
   lcm_eventlog_destroy(log);
   if (c.events == 0) throw std::runtime_error(path + ": no LCM events (not an LCM log, or empty)");
   return c;
@@ -84,6 +97,10 @@ int main(int argc, char** argv) {
     if (sink.before_topology() > 0)
       std::cout << "skipped          " << sink.before_topology() << " cloth states before the log's topology\n";
     for (const auto& [channel, n] : c.other) std::cout << "not exported     " << channel << ": " << n << "\n";
+    if (!c.damaged.empty()) {
+      std::cerr << "hapticloth-export: " << c.damaged << "\n";
+      return 1;
+    }
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "hapticloth-export: " << e.what() << "\n";

@@ -3,8 +3,9 @@
 #include <cmath>
 #include <csignal>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
+
+#include <unistd.h>
 
 #include "cli_checks.hpp"
 
@@ -119,11 +120,10 @@ int run_headless_job(const Args& a, const app::Scene& scene) {
               << scene.integrator.dt << " s)\n";
     return 2;
   }
-  const std::atomic<bool>& stop = app::install_stop_signals();
-  app::wind_down_on_stop_signals();  // the steps stop at the next one, and the summary says so
-  app::RunSummary r = app::run_headless(scene, steps, &stop);
+  // A signal while the model is built stops the run before its first step (the summary says so).
+  app::RunSummary r = app::run_headless(scene, steps, &app::install_stop_signals());
   if (r.stopped_after_of)
-    r.stopped = std::string("by ") + (app::stop_signal() == SIGTERM ? "SIGTERM" : "SIGINT") + " after " +
+    r.stopped = std::string("by ") + app::stop_signal_name() + " after " +
                 std::to_string(r.steps) + " of " + std::to_string(r.stopped_after_of) + " steps";
   std::cout << (a.json ? r.to_json() + "\n" : r.to_text());
   return r.finite ? 0 : 1;
@@ -160,7 +160,8 @@ std::string lcm_log_path(const Args& a, const app::Scene& scene) {
   std::error_code ec;
   std::filesystem::create_directories("out", ec);
   const std::string path = "out/" + scene.name + ".lcm";
-  if (!ec && std::ofstream(path, std::ios::app)) return path;
+  // The claim creates the file (and removes it again if the session never starts).
+  if (!ec && ::access("out", W_OK | X_OK) == 0) return path;
   std::cerr << "hapticloth-server: cannot write " << path << "; running without the LCM log\n";
   return "";
 }
@@ -174,7 +175,7 @@ int run_device_session(const Args& a, const app::Scene& scene) {
   app::OutputClaims claims;
   claims.claim(so.transport.lcm_log, a.tr.lcm_log.empty() ? "the LCM log (--lcm-log)" : "--lcm-log");
   claims.claim(scene.device.record_path, a.record.empty() ? "[device] record" : "--record");
-  so.stop = &app::install_stop_signals();  // installed by main; the flag
+  so.stop = &app::install_stop_signals();  // installed by main: its flag
   so.duration = a.duration;
   so.realtime = !a.fast;
   so.json = a.json;
@@ -194,10 +195,11 @@ int main(int argc, char** argv) {
   add_transport_options(cli, a);
   if (const int rc = opts::parse(cli, argc, argv); rc >= 0) return rc;
 
-  // From here a signal stops the server (at once during set-up; app/stop_signal.hpp).
-  app::install_stop_signals();
+  // From here a signal stops the server (app/stop_signal.hpp).
+  const std::atomic<bool>& stop = app::install_stop_signals();
   try {
     app::Scene scene = app::load_scene(a.scene_path);
+    app::check_stop(&stop);
     override_integrator(a, scene);
     if (a.headless) return run_headless_job(a, scene);
     if (!choose_device(a, scene)) {
@@ -206,6 +208,9 @@ int main(int argc, char** argv) {
       return 2;
     }
     return run_device_session(a, scene);
+  } catch (const app::StoppedDuringSetUp& e) {
+    std::cerr << "hapticloth-server: " << e.what() << "\n";
+    return 0;
   } catch (const std::exception& e) {  // app::ConfigError (a bad scene or option) and the rest
     std::cerr << "hapticloth-server: " << e.what() << "\n";
     return 2;

@@ -18,7 +18,13 @@ long max_triangles_for_memory() {
   return static_cast<long>(0.5 * static_cast<double>(physical_memory()) / kBytesPerTriangle);
 }
 
-long max_triangles_for_haptics() { return static_cast<long>(kLongestGlobalStepMs / kPcgMsPerTriangle); }
+double pcg_step_ms(long triangles) {
+  return kPcgRefStepMs * std::pow(static_cast<double>(triangles) / kPcgRefTriangles, kPcgExponent);
+}
+
+long max_triangles_for_haptics() {
+  return static_cast<long>(kPcgRefTriangles * std::pow(kLongestGlobalStepMs / kPcgRefStepMs, 1.0 / kPcgExponent));
+}
 
 std::string memory_limit_error(long triangles) {
   const long most = max_triangles_for_memory();
@@ -36,8 +42,9 @@ std::string haptic_budget_error(long triangles) {
   if (triangles <= most) return "";
   std::ostringstream os;
   os << std::fixed << std::setprecision(0) << triangles << " triangles: a global step of about "
-     << triangles * kPcgMsPerTriangle << " ms with PCG (" << kPcgMsPerTriangle * 1e6
-     << " ns a triangle), longer than the " << kLongestGlobalStepMs
+     << pcg_step_ms(triangles) << " ms with PCG (measured " << std::setprecision(1) << kPcgRefStepMs
+     << " ms at " << std::setprecision(0) << kPcgRefTriangles << " triangles, growing as triangles^"
+     << std::setprecision(2) << kPcgExponent << std::setprecision(0) << "), longer than the " << kLongestGlobalStepMs
      << " ms the haptic loop renders between; a device session takes at most " << most
      << " triangles (--headless runs any mesh that fits in memory)";
   return os.str();

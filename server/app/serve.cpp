@@ -265,14 +265,16 @@ std::unique_ptr<transport::Hub> open_transport(const Scene& scene, const ServeOp
   return hub;
 }
 
-// The Hub (and the dropped-packet reporter) observe the session; the `started` event.
-void attach(const Scene& scene, devices::DeviceHandle& dev, haptics::Session& session,
-            transport::Hub& hub, DropReporter& drops) {
+// The Hub (and the dropped-packet reporter) observe the session; the `started` event, which
+// names the clock the ticks' times are on (hapticloth-plot measures the period error by it).
+void attach(const Scene& scene, const ServeOptions& opt, devices::DeviceHandle& dev,
+            haptics::Session& session, transport::Hub& hub, DropReporter& drops) {
   drops.dev = &dev.device();
   drops.hub = &hub;
   session.add_observer(&hub);
   session.add_observer(&drops);
-  hub.post_event("started", "scene " + scene.name + ", device " + dev.info().name);
+  const char* clock = !opt.realtime ? "stepped" : scene.haptics.device_clock ? "device" : "loop";
+  hub.post_event("started", "scene " + scene.name + ", device " + dev.info().name + ", clock " + clock);
 }
 
 // Prints what runs, runs the session, and returns how a stop signal ended it ("" if none).
@@ -294,7 +296,7 @@ std::string run(const Scene& scene, const ServeOptions& opt, const cloth::ClothM
   else session.run_stepped(duration);
   if (!(opt.stop && opt.stop->load())) return "";
   std::ostringstream os;
-  os << "by " << (stop_signal() == SIGTERM ? "SIGTERM" : "SIGINT") << " after " << std::fixed
+  os << "by " << stop_signal_name() << " after " << std::fixed
      << std::setprecision(3) << session.report().sim_time << " s of " << duration << " s";
   hub.post_event("stopping", "server stops on a signal: " + os.str());
   return os.str();
@@ -401,18 +403,20 @@ int exit_status(const devices::DeviceHandle& dev, const haptics::Session& sessio
 // Plan, build, run, report.
 int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   const cloth::ClothModel model = build_model(scene);
+  check_stop(opt.stop);
   const double duration = opt.duration > 0.0 ? opt.duration : scene.duration;
   // The device first (a UDP rig can start streaming while the cloth settles).
   devices::DeviceHandle dev(opt.make_device ? opt.make_device(scene.device) : devices::make_device(scene.device));
   if (const std::string e = dev.configure(); !e.empty()) throw ConfigError("device: " + e);
+  check_stop(opt.stop);
   const auto hub = open_transport(scene, opt, dev, out);
-  wind_down_on_stop_signals();  // set-up done: from the preroll on, a signal winds the run down
+  check_stop(opt.stop);  // set-up done: from the preroll on, a signal winds the run down
   const Plan p = plan(scene, model, dev, opt.realtime, opt.stop);
   haptics::Session session(model, scene.integrator, cloth::make_solver(scene.solver, scene.pcg),
                            p.state, dev, p.session);
   session.set_stop_flag(opt.stop);
   DropReporter drops;
-  attach(scene, dev, session, *hub, drops);
+  attach(scene, opt, dev, session, *hub, drops);
   const std::string stopped = run(scene, opt, model, dev, p, duration, session, *hub, out);
   const std::string lost = hub->finish();  // everything published, the log closed, the MCAP file finished
   report(scene, opt, dev, p, session, *hub, stopped, out);

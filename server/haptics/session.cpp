@@ -108,7 +108,7 @@ void Session::run_realtime(double seconds) {
   std::thread haptic_thread([&] {
     note = haptic_thread_priority();
     elapsed_ticks = haptic_ticks(seconds, t_start, period);
-    realtime_wind_down(t_start, period);
+    realtime_wind_down(elapsed_ticks, t_start, period);
   });
   haptic_thread.join();
   stop_flag = true;
@@ -165,12 +165,7 @@ long Session::haptic_ticks(double seconds, double t_start, double period) {
   long elapsed = 0;
   for (long k = 0; k < ticks && !stop_requested(); ++k) {
     const double deadline = t_start + k * period;
-    // Sleep to just before the deadline, then spin the rest: the kernel's wake-up is late by
-    // tens of microseconds (more on a virtual machine); the spin costs spin_lead of CPU per tick.
-    const timespec ts = to_timespec(deadline - sc_.spin_lead);
-    clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
-    double woke = mono_now();
-    while (woke < deadline) woke = mono_now();
+    const double woke = wake_at(deadline);
     r_.haptic.period_error_us.add(std::abs(woke - deadline) * 1e6);
     // A wake-up more than a period late (the kernel now and then wakes a thread milliseconds
     // late): the ticks due meanwhile are skipped, counted as missed, not run in a burst.
@@ -223,13 +218,24 @@ double Session::haptic_tick(long k, double woke, double t_start) {
   return done;
 }
 
-// The end (of the run, or a stop signal): zero force through the gate, at the loop rate.
-void Session::realtime_wind_down(double t_start, double period) {
-  const double t_end = mono_now();
-  for (long j = 1; j <= kWindDownTicks; ++j) {
-    const timespec ts = to_timespec(t_end + j * period);
-    clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
-    const bool done = loop_->wind_down(mono_now() - t_start);
+// Sleeps to just before `deadline`, then spins the rest: the kernel's wake-up is late by tens
+// of microseconds (more on a virtual machine); the spin costs spin_lead of CPU per tick.
+// Returns the wake-up.
+double Session::wake_at(double deadline) const {
+  const timespec ts = to_timespec(deadline - sc_.spin_lead);
+  clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+  double woke = mono_now();
+  while (woke < deadline) woke = mono_now();
+  return woke;
+}
+
+// The end (of the run, or a stop signal): zero force through the gate, at the loop rate, on
+// the loop's deadline grid from deadline `next` on (or the first one still ahead), so that the
+// ticks' times in the log stay where the loop's deadlines are.
+void Session::realtime_wind_down(long next, double t_start, double period) {
+  long k = std::max(next, static_cast<long>((mono_now() - t_start) / period) + 1);
+  for (long j = 0; j < kWindDownTicks; ++j, ++k) {
+    const bool done = loop_->wind_down(wake_at(t_start + k * period) - t_start);
     notify_tick();
     if (done) break;
   }

@@ -144,7 +144,8 @@ class Session {
   long haptic_ticks(double seconds, double t_start, double period);
   long device_paced_ticks(double seconds, double t_start, double period);
   double haptic_tick(long k, double woke, double t_start);
-  void realtime_wind_down(double t_start, double period);
+  void realtime_wind_down(long next, double t_start, double period);
+  double wake_at(double deadline) const;
   void notify_tick() noexcept;
   /// Most closing ticks that bring the force to zero through the gate's slew limit (the
   /// default 1000 N/s takes 5 ms from 5 N).

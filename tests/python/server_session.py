@@ -102,15 +102,15 @@ class Server:
     def wait_ready(self, seconds: float = 60.0) -> float:
         """Waits until the preroll is over and the session starts: the first `stage` line (text
         summary) or, with --json (which prints nothing before the end), the LCM log's first
-        event (the transport hub is made after the preroll, right before the session). Returns
-        time.monotonic() at that moment."""
+        haptic sample (the log is open from before the preroll, with the scene in it; the
+        haptic samples come once the session runs). Returns time.monotonic() at that moment."""
         def ready():
             if self.p.poll() is not None:
                 raise AssertionError(f"the server exited ({self.p.returncode}) before its "
                                      f"session:\n{self.stdout}\n{self.stderr[-3000:]}")
             if self.json:
                 log = self.lcm_log
-                return log is not None and log.is_file() and log.stat().st_size > 0
+                return log is not None and log.is_file() and b"HAPTICLOTH_HAPTICS" in log.read_bytes()
             return self.stage_seen.is_set()
         assert wait_until(ready, seconds), \
             f"no session in {seconds} s: {self.stdout}{self.stderr}"

@@ -195,6 +195,14 @@ def test_record_to_a_missing_folder(tmp_path):
     assert_user_error(r, f"{out}: cannot write: the folder {out.parent} does not exist")
 
 
+def test_record_to_a_device_or_to_nothing(tmp_path):
+    # Issue 36 item 9: /dev/full printed a traceback mid-run; "" was taken.
+    assert_user_error(tool("hapticloth-record", "/dev/full", "--endpoint", unreachable_endpoint()),
+                      "out /dev/full: not a regular file")
+    assert_user_error(tool("hapticloth-record", "", "--endpoint", unreachable_endpoint()),
+                      "out: needs a path")
+
+
 def test_record_to_a_folder(tmp_path):
     assert_user_error(tool("hapticloth-record", tmp_path, "--endpoint", unreachable_endpoint()),
                       f"{tmp_path}: is a folder")

@@ -523,3 +523,17 @@ def test_output_is_a_folder(tmp_path):
     csv = tmp_path / "good.csv"
     csv.write_text("\n".join(good_lines()) + "\n")
     assert_user_error(fit_tool(csv, "-o", tmp_path), f"--output {tmp_path}: is a folder")
+
+
+def test_output_that_would_destroy_the_input_or_names_nothing(tmp_path):
+    """Issue 36 item 9: `-o in.csv` overwrote the measured data with the TOML; `-o ""` was
+    ignored."""
+    csv = tmp_path / "good.csv"
+    csv.write_text("\n".join(good_lines()) + "\n")
+    before = csv.read_text()
+    assert_user_error(fit_tool(csv, "-o", csv), f"--output {csv}: is the input {csv}")
+    assert csv.read_text() == before
+    assert_user_error(fit_tool(csv, "-o", ""), "--output: needs a path")
+    out = tmp_path / "out.toml"
+    assert_user_error(fit_tool(csv, "-o", out, "--plot", tmp_path / "plot.txt"), "must end in .png")
+    assert not out.exists()

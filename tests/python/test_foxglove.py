@@ -345,6 +345,30 @@ def test_export_rejects_what_is_not_a_log_and_skips_corrupt_messages(tmp_path):
     assert [decode(t, d).message for t, _, d in messages] == ["a good event"]
 
 
+@pytest.mark.parametrize("damage", ["cut off", "corrupt length"])
+def test_export_of_a_damaged_log_says_where_and_exits_1(damage, recorded_run, tmp_path):
+    """Issue 36 item 12: a log cut off mid-event, or with a corrupt event length, was exported
+    with exit 0 and no word (or LCM's bare "invalid data length: -16"): now the events before
+    the damage are exported, and stderr names the log and the byte where reading stopped."""
+    _, log, _ = recorded_run
+    data = bytearray(log.read_bytes())
+    sync = b"\xed\xa1\xda\x01"
+    starts = [i for i in range(len(data) - 3) if data[i:i + 4] == sync][:60]
+    if damage == "cut off":
+        data = data[:starts[50] + 40]  # the 51st event's header and a few bytes of it
+    else:  # the 51st event's data length (header: sync, number, time, channel length, data length)
+        data[starts[50] + 24:starts[50] + 28] = (-16).to_bytes(4, "big", signed=True)
+    bad = tmp_path / "damaged.lcm"
+    bad.write_bytes(bytes(data))
+    out = tmp_path / "damaged.mcap"
+    r = subprocess.run([str(program("hapticloth-export")), str(bad), "-o", str(out)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1, r.stderr
+    assert f"{bad}: the log cannot be read past byte {starts[50]} of {len(data)}" in r.stderr, r.stderr
+    assert "exported the 50 events before it" in r.stderr, r.stderr
+    assert "from 50 LCM events" in r.stdout, r.stdout
+
+
 def test_layout_shows_the_channels_the_server_publishes(recorded_run):
     """clients/foxglove/layout.json: its 3D panel shows /cloth and /fingertips, and every
     message path of its plots resolves in a recorded message of its channel."""

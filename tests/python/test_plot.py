@@ -116,6 +116,73 @@ def test_reads_forces_contacts_and_recovers_the_period_error(tmp_path):
     assert len(spans) == 1 and spans[0][0] == pytest.approx(0.2, abs=1e-3)
 
 
+def simulated_loop(rate, n, rng, late_every=250):
+    """The haptic loop's clock (haptics/session.cpp) for n ticks: each wakes a few us after its
+    deadline, and now and then 2.6 periods late, which skips the deadlines it passed (missed,
+    not run). Returns the ticks' times, their counts 1..n and the true period errors, us."""
+    period = 1.0 / rate
+    times, errors, k = [], [], 0
+    for i in range(n):
+        late = 2.6 * period if i % late_every == late_every - 1 else abs(rng.normal(0.0, 3e-6))
+        woke = k * period + late
+        times.append(woke)
+        errors.append((woke - k * period) * 1e6)  # late for the deadline it waited for
+        k = max(k, int(woke / period)) + 1  # the loop's rule: on from the last deadline passed
+    return np.array(times), np.arange(1, n + 1), np.array(errors)
+
+
+def test_period_error_follows_the_loops_deadlines_across_skipped_ticks():
+    """Issue 36 item 14: the plot took a tick's deadline as (tick - 1) / rate, so every wake-up
+    over a period late shifted all later ticks by a period: p99 1000 us beside the loop's 0.5.
+    The deadlines found by the loop's rule give each tick its own error back."""
+    rng = np.random.default_rng(3)
+    times, ticks, truth = simulated_loop(1000.0, 3000, rng)
+    run = plot.RunLog(times, ticks, np.zeros((3000, 2, 3)), np.zeros((3000, 2), dtype=bool))
+    err = plot.period_errors_us(run, 1000.0)
+    assert err == pytest.approx(truth, abs=1e-6)
+    assert np.percentile(err, 99) < 100.0  # 12 late ticks in 3000: under the 1%
+    # A log that lost samples (the publisher behind): the gap in the ticks keeps the count.
+    keep = np.ones(3000, dtype=bool)
+    keep[100:130] = False
+    gap = plot.RunLog(times[keep], ticks[keep], np.zeros((keep.sum(), 2, 3)), np.zeros((keep.sum(), 2), dtype=bool))
+    assert plot.period_errors_us(gap, 1000.0) == pytest.approx(truth[keep], abs=1e-6)
+
+
+def test_period_error_of_a_device_clocked_session_is_the_interval_jitter():
+    # On the device's clock the loop measures |interval - period| between ticks.
+    times = np.cumsum(np.full(100, 1e-3)) + np.r_[np.zeros(50), np.full(50, 40e-6)]
+    run = plot.RunLog(times, np.arange(1, 101), np.zeros((100, 2, 3)), np.zeros((100, 2), dtype=bool),
+                      device_clock=True)
+    err = plot.period_errors_us(run, 1000.0)
+    assert len(err) == 99 and err.max() == pytest.approx(40.0, abs=1e-6)
+    assert np.count_nonzero(err > 1e-6) == 1
+
+
+@pytest.mark.skipif(not (BUILD / "hapticloth-server").is_file(), reason="hapticloth-server is not built")
+def test_period_error_agrees_with_the_loops_own_statistics(tmp_path):
+    """The plot's period error of a real-time session's ticks, from its LCM log, against the
+    loop's own statistics in the server's summary (1 us histogram bins): the same ticks, the
+    same deadlines, so the same maximum and quantiles within a bin."""
+    import json
+
+    log = tmp_path / "run.lcm"
+    r = subprocess.run([str(BUILD / "hapticloth-server"), "--scene", str(REPO / "tools/scenes/hanging_square.toml"),
+                        "--device", "mock", "--duration", "3", "--json", "--no-zenoh", "--lcm-log", str(log)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    summary = json.loads(r.stdout.strip().splitlines()[-1])
+    run = plot.read_log(log)
+    assert not run.device_clock
+    n = summary["haptic_ticks"]
+    session = run.tick <= n  # not the wind-down's ticks after it
+    assert np.count_nonzero(session) == n, "the log lost haptic samples"
+    err = plot.period_errors_us(run, 1000.0)[session]
+    loop = summary["period_error_us"]
+    assert err.max() == pytest.approx(loop["max"], abs=1.0), (err.max(), loop)
+    for q, key in ((50, "p50"), (99, "p99")):
+        assert abs(np.percentile(err, q) - loop[key]) <= 1.5, (q, np.percentile(err, q), loop)
+
+
 def test_stepped_clock_log_without_loop_stats_plots(tmp_path):
     log, out = tmp_path / "fast.lcm", tmp_path / "plot.png"
     write_log(log, stats=False)
@@ -218,3 +285,12 @@ def test_unwritable_output(tmp_path):
     assert_user_error(plot_tool(log, "-o", out),
                       f"--out {out}: cannot write: the folder {out.parent} does not exist")
     assert_user_error(plot_tool(log, "-o", tmp_path), f"--out {tmp_path}: is a folder")
+    # Issue 36 item 9: these printed a traceback, or wrote somewhere unnamed.
+    txt = tmp_path / "p.txt"
+    assert_user_error(plot_tool(log, "-o", txt), f"--out {txt}: must end in .png")
+    assert not txt.exists()
+    assert_user_error(plot_tool(log, "-o", ""), "--out: needs a path")
+    assert_user_error(plot_tool(log, "-o", "/dev/full"), "--out /dev/full: not a regular file")
+    png = tmp_path / "run.png"
+    png.symlink_to(log)  # a name that would pass, pointing at the log it reads
+    assert_user_error(plot_tool(log, "-o", png), f"--out {png}: is the input {log}")

@@ -28,7 +28,9 @@ import os
 import random
 import re
 import signal
+import shutil
 import socket
+import subprocess
 import time
 from pathlib import Path
 from types import SimpleNamespace
@@ -36,7 +38,9 @@ from types import SimpleNamespace
 import pytest
 
 from server_session import (RECORD_HEADER, Rig, Server, free_port, haptic_samples, read_lcm_log,
-                            write_trajectory)
+                            wait_for_program, wait_until, write_trajectory)
+
+REPO = Path(__file__).resolve().parents[2]
 
 SEED = int(os.environ.get("HAPTICLOTH_TEST_SEED", "14"))
 FINGERS = 2
@@ -279,3 +283,84 @@ def test_a_second_signal_exits_at_once(first, second, tmp_path):
     assert took < 1.0, took
     # _exit: none of the orderly end (the summary is never printed).
     assert "haptic ticks" not in srv.stdout and "stopped" not in srv.stdout, srv.stdout
+
+
+def handler_installed(pid: int, sig: int) -> bool:
+    """True once the process catches `sig` (/proc/PID/status SigCgt): its main has started."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return False
+    m = re.search(r"^SigCgt:\s*([0-9a-f]+)$", status, re.M)
+    return m is not None and bool(int(m.group(1), 16) & (1 << (sig - 1)))
+
+
+def scene_of(tmp_path: Path, resolution: int, preroll: float) -> Path:
+    """The hanging square at `resolution` x `resolution` quads with the given preroll, beside
+    copies of the scenes' script and materials."""
+    for folder in ("scenes", "materials"):
+        shutil.copytree(REPO / "tools" / folder, tmp_path / folder, dirs_exist_ok=True)
+    text = (REPO / "tools" / "scenes" / "hanging_square.toml").read_text()
+    text = re.sub(r"(?m)^resolution = \[\d+, \d+\]", f"resolution = [{resolution}, {resolution}]", text)
+    text = re.sub(r"(?m)^preroll = [0-9.]+", f"preroll = {preroll}", text)
+    path = tmp_path / "scenes" / f"square_{resolution}.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_a_signal_during_set_up_stops_before_anything_runs(signame, tmp_path):
+    """Issue 36 item 7: SIGINT was not honoured while a large mesh was built. A signal during
+    set-up (here: building a 80000-triangle cloth, opening the transports) ends the server
+    there: exit 0, one line on stderr, no stage line, no session, and neither the record nor the
+    LCM log its claims created is left behind."""
+    scene = scene_of(tmp_path, 200, preroll=600.0)
+    out = tmp_path / "out"
+    out.mkdir()
+    cmd = [str(wait_for_program("hapticloth-server")), "--scene", str(scene), "--device", "mock",
+           "--no-zenoh", "--record", str(out / "record.csv"), "--lcm-log", str(out / "session.lcm")]
+    p = subprocess.Popen(cmd, cwd=out, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert wait_until(lambda: handler_installed(p.pid, SIGNALS[signame]) or p.poll() is not None, 10.0)
+        p.send_signal(SIGNALS[signame])
+        stdout, stderr = p.communicate(timeout=60)  # the 600 s preroll never starts
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.communicate()
+    said = f"exit {p.returncode}\nstdout: {stdout}\nstderr: {stderr}"
+    assert p.returncode == 0, said
+    assert f"hapticloth-server: stopped by {signame} during set-up (nothing ran)" in stderr, said
+    assert "stage" not in stdout and "haptic ticks" not in stdout, said
+    assert sorted(q.name for q in out.iterdir()) == [], said
+
+
+@pytest.mark.parametrize("as_json", [False, True], ids=["text", "json"])
+def test_sigterm_stops_a_headless_run_with_its_summary(as_json, tmp_path):
+    """Issue 36 item 13: --headless ended with status 143 and no summary on SIGTERM. It stops at
+    its next step and prints the summary of the steps it ran, saying so, and exits 0."""
+    scene = scene_of(tmp_path, 40, preroll=0.0)
+    cmd = [str(wait_for_program("hapticloth-server")), "--scene", str(scene), "--headless",
+           "--duration", "100000"] + (["--json"] if as_json else [])
+    p = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert wait_until(lambda: handler_installed(p.pid, signal.SIGTERM) or p.poll() is not None, 10.0)
+        time.sleep(1.0)  # steps run
+        p.send_signal(signal.SIGTERM)
+        stdout, stderr = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.communicate()
+    said = f"exit {p.returncode}\nstdout: {stdout}\nstderr: {stderr}"
+    assert p.returncode == 0, said
+    asked = round(100000 / 0.001)  # the scene's dt: 1 ms
+    if as_json:
+        j = json.loads(stdout)
+        steps, stopped, finite = j["steps"], j["stopped"], j["finite"]
+    else:
+        steps = int(re.search(r"^steps +(\d+) ", stdout, re.M).group(1))
+        stopped = re.search(r"^stopped +(.+)$", stdout, re.M).group(1)
+        finite = "state finite     yes" in stdout
+    assert 0 < steps < asked and finite, said
+    assert stopped == f"by SIGTERM after {steps} of {asked} steps", said

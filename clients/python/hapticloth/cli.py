@@ -135,7 +135,7 @@ def _record(argv):
     check_number("--duration", a.duration, "a positive number of seconds", 0.0, MAX_RECORD_SECONDS,
                  low_open=True, unit=" s")
     _check_timeout(a)
-    check_writable(a.out)
+    check_writable(a.out, "out")
     c, scene = _connect(a)
     started = True
     with c:
@@ -150,6 +150,9 @@ def _record(argv):
         except KeyboardInterrupt:
             pass
         counts = rec.stop()
+    if rec.write_error:
+        print(f"hapticloth-record: {a.out}: {rec.write_error}", file=sys.stderr, flush=True)
+        return EXIT_FAILED
     if not started:
         raise UserError(f"{_where(a)}: no {rec.started_by} message from server '{a.server}' "
                         f"within --timeout {a.timeout:g} s")

@@ -376,6 +376,9 @@ class Recorder:
         self._open = True
         self.path = path
         self.counts = {t: 0 for t in topics}
+        #: why messages could not be written (the first failure, and how many), or ""
+        self.write_error = ""
+        self._write_failures = 0
         self._client = client
         # Streaming topics are declared last: a zenoh session's declarations take effect in
         # order, so once the last one delivers, every subscription before it is in place too.
@@ -389,9 +392,17 @@ class Recorder:
         def write(data):
             with self._lock:
                 if self._open:
-                    self._log.write_event(now_utime(), ch, data)
-                    self.counts[topic] += 1
+                    try:
+                        self._log.write_event(now_utime(), ch, data)
+                        self.counts[topic] += 1
+                    except (OSError, IOError) as e:
+                        self._note_failure(e)
         return write
+
+    def _note_failure(self, e):
+        self._write_failures += 1
+        first = self.write_error.split(" (", 1)[0] if self.write_error else (e.strerror or str(e))
+        self.write_error = f"{first} ({self._write_failures} messages not written)"
 
     def wait_started(self, timeout):
         """Waits until the subscriptions are in place: the last-declared streaming topic has
@@ -415,7 +426,10 @@ class Recorder:
         with self._lock:
             if self._open:
                 self._open = False
-                self._log.close()
+                try:
+                    self._log.close()
+                except (OSError, IOError) as e:
+                    self._note_failure(e)
         return self.counts
 
     def __enter__(self):

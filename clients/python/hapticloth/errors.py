@@ -82,12 +82,21 @@ def check_number(option, value, what, low=-math.inf, high=math.inf, low_open=Fal
     return value
 
 
-def check_writable(path, option=None) -> None:
+def check_writable(path, option=None, inputs=(), suffixes=()) -> None:
     """UserError naming `path` (and the option that gave it) unless a file can be written
     there: checked before the work, so that a run or a fit is not lost to a typo in its
-    output path."""
+    output path. Also refused: an empty path, what is not a regular file (/dev/full, a FIFO),
+    one of the run's `inputs` (it would be overwritten with the output), and a name not ending
+    in one of `suffixes` when they are given (the format is chosen by it)."""
     p = os.fspath(path)
     where = f"{option} {p}" if option else p
+    if not p:
+        raise UserError(f"{option or 'output'}: needs a path (an empty one names no file)")
+    if os.path.exists(p) and not os.path.isdir(p) and not stat.S_ISREG(os.stat(p).st_mode):
+        raise UserError(f"{where}: not a regular file (a device or FIFO); give a file to write")
+    for i in inputs:
+        if os.path.exists(p) and os.path.exists(i) and os.path.samefile(p, i):
+            raise UserError(f"{where}: is the input {os.fspath(i)}; writing it would destroy it")
     if os.path.isdir(p):
         raise UserError(f"{where}: is a folder, not a file to write")
     folder = os.path.dirname(p) or "."
@@ -97,6 +106,8 @@ def check_writable(path, option=None) -> None:
         raise UserError(f"{where}: cannot write: {folder} is not a folder")
     if not os.access(folder, os.W_OK | os.X_OK) or (os.path.exists(p) and not os.access(p, os.W_OK)):
         raise UserError(f"{where}: cannot write: permission denied")
+    if suffixes and not p.lower().endswith(tuple(suffixes)):
+        raise UserError(f"{where}: must end in {' or '.join(suffixes)} (the format written)")
 
 
 #: bytes: the largest input a tool reads (a device log of an hour at 1 kHz is about 0.7 GB)

@@ -62,9 +62,9 @@ def _main(argv: list[str] | None) -> int:
     except OSError as e:
         raise UserError(f"cannot read {args.csv}: {e.strerror or e}") from None
     # Both outputs are checked before the fit, so that neither is written when one cannot be.
-    check_writable(args.output, "--output")
+    check_writable(args.output, "--output", inputs=[args.csv])
     if args.plot:
-        check_writable(args.plot, "--plot")
+        check_writable(args.plot, "--plot", inputs=[args.csv, args.output], suffixes=(".png",))
 
     fits = fit_measured(measured, args.segments)
     for n, f in fits.items():

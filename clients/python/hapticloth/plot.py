@@ -3,11 +3,18 @@ finger against time, the haptic period histogram and the loop statistics, to one
 
     hapticloth-plot out/hanging_square.lcm -o out/plot.png [--size 1200x800]
 
-Messages are recognised by their type fingerprint, whatever their channel. The period error of a
-tick is |wake-up - deadline| as the server measures it: the tick's loop-clock time less its
-deadline on the nominal grid (the grid's offset taken from the earliest wake-up, as the loop never
-wakes early). On a stepped clock every tick is on its deadline. Quantiles of the period error and
-the compute time also come from the last loop_stats_t when the run published one (real time).
+Messages are recognised by their type fingerprint, whatever their channel. The period error is
+the one the haptic loop measures (haptics/session.cpp), recomputed from each tick's loop-clock
+time:
+- on the loop's own clock, |wake-up - deadline|. The deadline of a tick is found as the loop
+  finds it: the next one on the grid k / rate after the last tick's; after a wake-up more than a
+  period late, the loop goes on from the last deadline passed (the ticks skipped are missed
+  deadlines, not run);
+- on the device's clock (the `started` event says "clock device"), |interval - period| between
+  consecutive ticks;
+- on a stepped clock every tick is on its deadline.
+Quantiles of the period error and the compute time also come from the last loop_stats_t when the
+run published one (real time): the log's own figures, beside the recomputed ones.
 Exit code 2 (one line naming the file or option) when the log cannot be read or holds no
 haptic samples, or the PNG cannot be written.
 """
@@ -22,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import UserError, check_writable, run_cli
-from .lcmtypes import haptic_state_t, loop_stats_t, open_event_log, scene_info_t
+from .lcmtypes import event_t, haptic_state_t, loop_stats_t, open_event_log, scene_info_t
 
 #: Finger colours, as hapticloth-render draws the fingertips.
 FINGER_COLORS = ["#e87d1e", "#1e96af", "#9650be", "#5aa53c"]
@@ -38,6 +45,7 @@ class RunLog:
     contact: np.ndarray  # (n, fingers) bool
     stats: list = field(default_factory=list)  # loop_stats_t, in log order
     scene: object = None  # scene_info_t or None
+    device_clock: bool = False  # the session ticked on the device's samples (`started` event)
 
     @property
     def fingers(self) -> int:
@@ -52,8 +60,9 @@ def read_log(path) -> RunLog:
     """Reads the haptic samples, loop statistics and scene of an LCM log. Raises UserError
     (LogError) naming the file."""
     log = open_event_log(path)
-    kinds = {cls._get_packed_fingerprint(): cls for cls in (haptic_state_t, loop_stats_t, scene_info_t)}
-    batches, stats, scene = [], [], None
+    kinds = {cls._get_packed_fingerprint(): cls
+             for cls in (haptic_state_t, loop_stats_t, scene_info_t, event_t)}
+    batches, stats, scene, device_clock = [], [], None, False
     for ev in log:
         cls = kinds.get(ev.data[:8])
         if cls is None:
@@ -67,6 +76,8 @@ def read_log(path) -> RunLog:
                 batches.append(m)
         elif cls is loop_stats_t:
             stats.append(m)
+        elif cls is event_t:
+            device_clock = device_clock or (m.kind == "started" and "clock device" in m.text)
         elif scene is None:
             scene = m
     log.close()
@@ -81,13 +92,29 @@ def read_log(path) -> RunLog:
     contact = np.concatenate([np.array([list(row) for row in b.in_contact], dtype=bool).reshape(b.num_samples, fingers)
                               for b in batches])
     order = np.argsort(tick, kind="stable")
-    return RunLog(time[order], tick[order], force[order], contact[order], stats, scene)
+    return RunLog(time[order], tick[order], force[order], contact[order], stats, scene, device_clock)
+
+
+def deadlines(time: np.ndarray, tick: np.ndarray, rate: float) -> np.ndarray:
+    """The deadline index k (deadline k / rate) each tick waited for, by the loop's rule: the
+    one after the last tick's (as many after as ticks are missing from the log); a wake-up over
+    a period late is late for that deadline, and the loop goes on from the last deadline it
+    passed (the ticks between are skipped, missed deadlines)."""
+    k = np.empty(len(time), dtype=np.int64)
+    passed = np.floor(time * rate + 1e-9).astype(np.int64)
+    last, last_tick = -1, tick[0] - 1 if len(tick) else 0
+    for i in range(len(time)):
+        k[i] = last + int(tick[i] - last_tick)
+        last, last_tick = max(int(k[i]), int(passed[i])), tick[i]
+    return k
 
 
 def period_errors_us(run: RunLog, rate: float) -> np.ndarray:
-    """us, |wake-up - deadline| of every tick: time - tick / rate, less its minimum."""
-    lag = run.time - run.tick / rate
-    return (lag - lag.min()) * 1e6
+    """us, the period error of every tick as the loop measures it (see the module's doc): on
+    the device's clock one per interval between ticks, else one per tick."""
+    if run.device_clock:
+        return np.abs(np.diff(run.time) - 1.0 / rate) * 1e6
+    return np.abs(run.time - deadlines(run.time, run.tick, rate) / rate) * 1e6
 
 
 def contact_spans(t: np.ndarray, on: np.ndarray):
@@ -101,8 +128,9 @@ def contact_spans(t: np.ndarray, on: np.ndarray):
 
 def stats_text(run: RunLog, errors: np.ndarray) -> str:
     q = np.percentile(errors, [50, 99, 99.9])
-    lines = [f"haptic ticks in the log  {len(run.time)}",
-             f"period error (samples)  p50 {q[0]:.1f}  p99 {q[1]:.1f}  p99.9 {q[2]:.1f}  "
+    lines = [f"haptic ticks in the log  {len(run.time)}"
+             + ("  (on the device's clock)" if run.device_clock else ""),
+             f"period error (ticks)  p50 {q[0]:.1f}  p99 {q[1]:.1f}  p99.9 {q[2]:.1f}  "
              f"max {errors.max():.1f} us"]
     if errors.max() < 1e-3:
         lines.append("stepped clock: every tick on its deadline")
@@ -172,7 +200,8 @@ def plot(run: RunLog, out, size=(1200, 800), title=None):
         for q, ls in ((99, "--"), (99.9, ":")):
             ax.axvline(max(np.percentile(e, q), floor), color="0.2", ls=ls, lw=1, label=f"p{q:g}")
         ax.legend(fontsize=9)
-        ax.set_xlabel(f"|wake-up - deadline| (us; first bin: <= {floor:g})")
+        what = "|interval - period|" if run.device_clock else "|wake-up - deadline|"
+        ax.set_xlabel(f"{what} (us; first bin: <= {floor:g})")
     else:
         ax.text(0.5, 0.5, "stepped clock:\nevery tick on its deadline", ha="center", va="center",
                 transform=ax.transAxes)
@@ -213,7 +242,7 @@ def _main(argv) -> int:
     ap.add_argument("--size", type=parse_size, default=(1200, 800), help="WxH in pixels (default 1200x800)")
     ap.add_argument("--title", default=None, help="figure title (default: the scene name)")
     a = ap.parse_args(argv)
-    check_writable(a.out, "--out")  # before reading a long log
+    check_writable(a.out, "--out", inputs=[a.log], suffixes=(".png",))  # before reading a long log
     run = read_log(a.log)
     try:
         plot(run, a.out, a.size, a.title)
