@@ -3,6 +3,7 @@
 #include <map>
 #include <stdexcept>
 
+#include "composite/composite_device.hpp"
 #include "mock/mock_device.hpp"
 #include "replay/replay_device.hpp"
 #ifdef HAPTICLOTH_HAVE_UDP
@@ -22,6 +23,7 @@ struct Driver {
 
 const std::map<std::string, Driver>& registry() {
   static const std::map<std::string, Driver> r = {
+      {"composite", {make_composite_device, false}},
       {"mock", {make_mock_device, false}},
       {"replay", {make_replay_device, false}},
 #ifdef HAPTICLOTH_HAVE_UDP

@@ -109,6 +109,8 @@ struct DeviceCounters {
   }
 };
 
+struct GateCounters;  // hal/safety_gate.hpp
+
 class Device {
  public:
   virtual ~Device() = default;
@@ -142,6 +144,19 @@ class Device {
   }
 
   virtual const DeviceCounters& counters() const = 0;
+
+  /// A device made of parts (composite/composite_device.hpp): how many, each part, and the
+  /// counters of each part's own watchdog (null for a device without one). Off the real-time
+  /// path (the summary).
+  virtual int part_count() const { return 0; }
+  virtual const Device& part(int i) const {
+    (void)i;
+    return *this;
+  }
+  virtual const GateCounters* part_gate(int i) const {
+    (void)i;
+    return nullptr;
+  }
 };
 
 }  // namespace hapticloth::devices

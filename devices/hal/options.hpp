@@ -4,6 +4,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "hal/device.hpp"
 
@@ -28,6 +29,12 @@ struct DeviceOptions {
   /// s: a sample older than this when it is read, by the rig's clock, is dropped as stale (the
   /// safety gate's watchdog: the scene's [haptics] watchdog_ms)
   double stale_after = 0.005;
+  /// s: a composite's part that went stale fades its finger's force out over this (the safety
+  /// gate's ramp: [haptics] ramp_ms)
+  double stale_ramp = 0.02;
+
+  // composite: the parts, one finger each (part i gives finger i)
+  std::vector<DeviceOptions> parts;
 
   // replay
   std::string replay_path;            ///< device log CSV to play back

@@ -56,9 +56,10 @@ std::string parse_udp_endpoint(const std::string& text, UdpEndpoint& out) {
 UdpDevice::UdpDevice(const DeviceOptions& opt) : opt_(opt) {
   const std::string err = parse_udp_endpoint(opt.udp_bind, bind_);
   if (!err.empty()) throw std::invalid_argument(err);
-  if (!valid_finger_count(opt.fingers))
-    throw std::invalid_argument("fingers " + std::to_string(opt.fingers) + ": a device has " +
-                                std::to_string(kMinFingers) + " to " + std::to_string(kMaxFingers));
+  // One finger is a part of a composite device (two single-finger arms for a pinch).
+  if (opt.fingers < 1 || opt.fingers > kMaxFingers)
+    throw std::invalid_argument("fingers " + std::to_string(opt.fingers) + ": a UDP rig has 1 to " +
+                                std::to_string(kMaxFingers));
   info_.name = "udp " + opt.udp_bind;
   info_.fingers = opt.fingers;
   info_.workspace = opt.workspace;

@@ -175,6 +175,8 @@ int run_device_session(const Args& a, const app::Scene& scene) {
   app::OutputClaims claims;
   claims.claim(so.transport.lcm_log, a.tr.lcm_log.empty() ? "the LCM log (--lcm-log)" : "--lcm-log");
   claims.claim(scene.device.record_path, a.record.empty() ? "[device] record" : "--record");
+  for (std::size_t i = 0; i < scene.device.parts.size(); ++i)
+    claims.claim(scene.device.parts[i].record_path, "[[device.part]] " + std::to_string(i) + " record");
   so.stop = &app::install_stop_signals();  // installed by main: its flag
   so.duration = a.duration;
   so.realtime = !a.fast;

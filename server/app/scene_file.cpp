@@ -128,10 +128,47 @@ Eigen::Vector3d vec3(const TomlFile& f, const toml::table& t, const std::string&
   return {v[0], v[1], v[2]};
 }
 
+// [[device.part]] of driver = "composite": one single-finger streaming rig per finger (part i
+// gives finger i), each with its own endpoint and record.
+void load_device_parts(const TomlFile& f, const toml::table& t, const std::string& path, Scene& s) {
+  auto& d = s.device;
+  const toml::node* n = t.get("part");
+  const bool composite = d.driver == "composite";
+  if (!n) {
+    if (composite)
+      f.fail(t.get("driver"), "device.driver", "\"composite\" needs its parts: a [[device.part]] table per finger");
+    return;
+  }
+  if (!composite) f.fail(n, "device.part", "parts make a device of driver = \"composite\", not " + d.driver);
+  const toml::array* parts = n->as_array();
+  if (!parts || !parts->is_array_of_tables())
+    f.fail(n, "device.part", "expected [[device.part]] tables, one per finger");
+  if (parts->size() < static_cast<std::size_t>(devices::kMinFingers) || parts->size() > static_cast<std::size_t>(devices::kMaxFingers))
+    f.fail(n, "device.part", "a composite device has " + std::to_string(devices::kMinFingers) + " to " +
+                                 std::to_string(devices::kMaxFingers) + " parts, one finger each");
+  if (t.contains("fingers") && d.fingers != static_cast<int>(parts->size()))
+    f.fail(t.get("fingers"), "device.fingers", "must equal the number of [[device.part]] tables (" +
+                                                   std::to_string(parts->size()) + ")");
+  d.fingers = static_cast<int>(parts->size());
+  for (std::size_t i = 0; i < parts->size(); ++i) {
+    const toml::table& pt = *(*parts)[i].as_table();
+    const std::string prefix = "device.part[" + std::to_string(i) + "]";
+    f.only_keys(pt, prefix, {"driver", "udp_bind", "record"});
+    devices::DeviceOptions p;
+    p.driver = f.string(pt, prefix, "driver");
+    if (!devices::driver_paces_loop(p.driver))
+      f.fail(pt.get("driver"), prefix + ".driver", "must be a one-finger rig that streams its samples (\"udp\"), not '" +
+                                                      p.driver + "'");
+    p.udp_bind = f.string(pt, prefix, "udp_bind");
+    if (pt.get("record")) p.record_path = resolve(path, f.string(pt, prefix, "record"));
+    d.parts.push_back(p);
+  }
+}
+
 void load_device(const TomlFile& f, const toml::table& t, const std::string& path, Scene& s) {
   f.only_keys(t, "device", {"driver", "fingers", "workspace_min", "workspace_max", "max_force",
                             "max_stiffness", "rate", "script", "record", "replay", "udp_bind",
-                            "clock", "origin", "axes"});
+                            "clock", "origin", "axes", "part"});
   auto& d = s.device;
   s.has_device = true;
   d.driver = f.string(t, "device", "driver");
@@ -143,6 +180,7 @@ void load_device(const TomlFile& f, const toml::table& t, const std::string& pat
   }
   d.fingers = static_cast<int>(
       f.integer(t, "device", "fingers", d.fingers, devices::kMinFingers, devices::kMaxFingers));
+  load_device_parts(f, t, path, s);
   d.workspace.min = vec3(f, t, "device", "workspace_min", d.workspace.min);
   d.workspace.max = vec3(f, t, "device", "workspace_max", d.workspace.max);
   for (const char* key : {"workspace_min", "workspace_max"}) {
@@ -428,6 +466,7 @@ Scene load_scene(const std::string& path) {
   if (const toml::table* t = f.table(r, "", "device", false)) load_device(f, *t, path, s);
   if (const toml::table* t = f.table(r, "", "haptics", false)) load_haptics(f, *t, s);
   s.device.stale_after = s.haptics.gate.watchdog;  // a sample the watchdog would call stale
+  s.device.stale_ramp = s.haptics.gate.ramp_time;
   return s;
 }
 

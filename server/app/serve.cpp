@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "hal/handle.hpp"
+#include "hal/safety_gate.hpp"
 #include "hal/platform_timer.hpp"
 #include "haptics/local_refinement.hpp"
 #include "haptics/session.hpp"
@@ -336,6 +337,16 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
     if (!record.empty())
       j["record"] = {{"path", record}, {"rows", dc.record_rows}, {"dropped", dc.record_dropped},
                      {"error", record_error.empty() ? nlohmann::json(nullptr) : nlohmann::json(record_error)}};
+    j["device_parts"] = nlohmann::json::array();
+    for (int i = 0; i < dev.device().part_count(); ++i) {
+      const devices::Device& part = dev.device().part(i);
+      const auto& pc = part.counters();
+      const devices::GateCounters* pg = dev.device().part_gate(i);
+      j["device_parts"].push_back({{"name", part.info().name}, {"samples", pc.samples},
+                                   {"dropped", pc.dropped_total()}, {"dropped_stale", pc.dropped_stale},
+                                   {"dropped_other_sender", pc.dropped_other_sender},
+                                   {"stale_events", pg ? pg->stale_events : 0}});
+    }
     j["gate"] = {{"non_finite", gc.non_finite}, {"clamped", gc.clamped},
                  {"slew_limited", gc.slew_limited}, {"stale_events", gc.stale_events}};
     j["integrator_events"] = ev.total();
@@ -364,6 +375,15 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
       << ", out of range " << dc.dropped_out_of_range << ", queued before the session "
       << dc.dropped_backlog << ", stale " << dc.dropped_stale << ", other sender "
       << dc.dropped_other_sender << ")\n";
+  for (int i = 0; i < dev.device().part_count(); ++i) {  // a composite device: each part's own
+    const devices::Device& part = dev.device().part(i);
+    const auto& pc = part.counters();
+    const devices::GateCounters* pg = dev.device().part_gate(i);
+    out << "device part " << i << "    " << part.info().name << " (finger " << i << "): samples " << pc.samples
+        << ", dropped " << pc.dropped_total() << " (queued before the session " << pc.dropped_backlog
+        << ", stale " << pc.dropped_stale << ", other sender " << pc.dropped_other_sender
+        << "), watchdog stale events " << (pg ? pg->stale_events : 0) << "\n";
+  }
   out << "safety gate      non-finite " << gc.non_finite << ", clamped " << gc.clamped
       << ", slew-limited " << gc.slew_limited << ", stale events " << gc.stale_events << "\n";
   out << "cloth events     " << ev.total() << "\n";

@@ -57,14 +57,30 @@ def wait_until(predicate, seconds: float, step: float = 0.01) -> bool:
     return bool(predicate())
 
 
+def has_haptic_sample(log: Path) -> bool:
+    """Whether the LCM log (being written) holds an event on the haptics channel yet."""
+    import lcm
+
+    try:
+        events = lcm.EventLog(str(log), "r")
+    except (OSError, IOError):
+        return False
+    try:
+        return any(ev.channel == "HAPTICLOTH_HAPTICS" for ev in events)
+    except (OSError, IOError, ValueError):
+        return False
+    finally:
+        events.close()
+
+
 class Server:
     """hapticloth-server --scene hanging_square.toml ARGS, started at once in `cwd` (the default
     LCM log would land in cwd/out/). Its stdout and stderr are collected by reader threads."""
 
-    def __init__(self, *args, cwd, lcm_log=None, inherit_ignored_signals=False):
+    def __init__(self, *args, cwd, lcm_log=None, inherit_ignored_signals=False, scene=SCENE):
         self.lcm_log = Path(lcm_log) if lcm_log else None
         self.json = "--json" in args
-        cmd = [str(wait_for_program("hapticloth-server")), "--scene", str(SCENE), *map(str, args)]
+        cmd = [str(wait_for_program("hapticloth-server")), "--scene", str(scene), *map(str, args)]
         if self.lcm_log:
             cmd += ["--lcm-log", str(self.lcm_log)]
 
@@ -110,7 +126,7 @@ class Server:
                                      f"session:\n{self.stdout}\n{self.stderr[-3000:]}")
             if self.json:
                 log = self.lcm_log
-                return log is not None and log.is_file() and b"HAPTICLOTH_HAPTICS" in log.read_bytes()
+                return log is not None and log.is_file() and has_haptic_sample(log)
             return self.stage_seen.is_set()
         assert wait_until(ready, seconds), \
             f"no session in {seconds} s: {self.stdout}{self.stderr}"

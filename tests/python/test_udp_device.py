@@ -437,3 +437,62 @@ def test_a_rig_that_falls_silent_gets_its_force_faded_over_the_ramp(tmp_path):
     steps = [a - b for a, b in zip([f0] + fading, fading)]
     # a step per tick of 1/20 of it: up to twice that on a tick that woke a period late
     assert max(steps) <= f0 / 20 * 2.0 + 1e-9, (f0, fading[:25])
+
+
+def composite_scene(tmp_path, ports, records):
+    """The hanging square with its device made of two single-finger UDP rigs (driver
+    "composite", a [[device.part]] per finger), beside copies of its script and material."""
+    import re
+    import shutil
+
+    for folder in ("scenes", "materials"):
+        shutil.copytree(SCENE.parents[1] / folder, tmp_path / folder, dirs_exist_ok=True)
+    text = SCENE.read_text().replace('driver = "mock"', 'driver = "composite"')
+    text = re.sub(r"(?m)^fingers = 2\n", "", text)
+    for port, record in zip(ports, records):
+        text += f'\n[[device.part]]\ndriver = "udp"\nudp_bind = "127.0.0.1:{port}"\nrecord = "{record}"\n'
+    path = tmp_path / "scenes" / "two_arms.toml"
+    path.write_text(text)
+    return path
+
+
+def test_two_single_finger_rigs_make_one_device_each_with_its_own_watchdog(tmp_path):
+    """Issue 36 item 3: a pinch rig is often two single-finger arms. A scene composes its device
+    from two UDP drivers, each giving one finger with its own counters and watchdog: arm 0
+    presses the cloth for 3 s, arm 1 hovers behind it and falls silent after 1.5 s. Arm 1's
+    part goes stale (its own watchdog), arm 0's does not and keeps being rendered at full
+    force (the loop's gate never trips: the device is stale only when both arms are); each
+    part counts its own samples and records its own one-finger log."""
+    ports = [free_port(), free_port()]
+    records = [tmp_path / "arm0.csv", tmp_path / "arm1.csv"]
+    scene = composite_scene(tmp_path, ports, records)
+    arm0 = {0: [(0.0, F0_HOVER), (0.5, F0_PRESSED), (3.0, F0_PRESSED)]}
+    arm1 = {0: [(0.0, F1_HOVER)]}
+    with Server("--duration", 5.0, "--json", "--no-zenoh", cwd=tmp_path, scene=scene,
+                lcm_log=tmp_path / "session.lcm") as srv:
+        srv.wait_ready()
+        with Rig(ports[0], write_trajectory(tmp_path / "arm0.traj.csv", arm0), 3.0, tmp_path / "rig0.csv") as r0, \
+             Rig(ports[1], write_trajectory(tmp_path / "arm1.traj.csv", arm1), 1.5, tmp_path / "rig1.csv") as r1:
+            s0, s1 = r0.finish(), r1.finish()
+            p0, p1 = r0.forces(), r1.forces()
+        assert srv.finish(seconds=90) == 0, srv.stderr[-3000:]
+    summary = json.loads(srv.stdout.strip().splitlines()[-1])
+    parts = summary["device_parts"]
+    assert [p["name"] for p in parts] == [f"udp 127.0.0.1:{ports[0]}", f"udp 127.0.0.1:{ports[1]}"], parts
+    # Each part counted its own rig's samples (a Python rig sends about 1 per ms).
+    assert 0.8 * s0["sent"] <= parts[0]["samples"] <= s0["sent"], (parts, s0)
+    assert 0.8 * s1["sent"] <= parts[1]["samples"] <= s1["sent"], (parts, s1)
+    assert parts[1]["stale_events"] >= 1, parts  # arm 1 fell silent
+    # The one-finger force packets each arm got: arm 0's force stays up after arm 1 went quiet.
+    assert all(len(p["forces"]) == 1 for p in p0 + p1)
+    silent_at = p1[-1]["time"]
+    pressed = [math.hypot(*p["forces"][0]) for p in p0 if silent_at + 0.1 <= p["time"] <= 2.9]
+    # (a Python rig now and then pauses past the watchdog itself: most, not all, packets)
+    held = sum(1 for f in pressed if f > 1e-3)
+    assert len(pressed) > 500 and held >= 0.95 * len(pressed), (len(pressed), held)
+    assert max(math.hypot(*p["forces"][0]) for p in p1) == 0.0  # arm 1 only hovered
+    for rec in records:  # each part's own one-finger record
+        with rec.open(newline="") as f:
+            rows = list(csv.DictReader(f))
+        assert len(rows) > 1000 and {r["finger"] for r in rows} == {"0"}, rec
+
