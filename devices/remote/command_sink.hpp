@@ -18,6 +18,9 @@ struct TrajectoryCommand {
   std::vector<Vec3> positions;   ///< m, device frame, one per time
   std::string source;            ///< who sent it (for events)
   std::int64_t seq = 0;          ///< the sender's sequence number
+  /// The sender's send time (trajectory_cmd_t utime). Commands of one source with the same
+  /// utime are one batch and start together (RemoteDevice); 0: on its own.
+  std::int64_t utime = 0;
 };
 
 class RemoteCommandSink {

@@ -1,6 +1,7 @@
 #include "remote/remote_device.hpp"
 
 #include <cmath>
+#include <functional>
 #include <sstream>
 
 #include "mock/trajectory.hpp"
@@ -97,17 +98,39 @@ std::string RemoteDevice::submit(const TrajectoryCommand& c) {
   p.n = static_cast<int>(c.times.size());
   std::copy(c.times.begin(), c.times.end(), p.t.begin());
   std::copy(c.positions.begin(), c.positions.end(), p.p.begin());
+  p.batch = c.utime == 0 ? 0 : (std::hash<std::string>{}(c.source) * 1000003u) ^ static_cast<std::uint64_t>(c.utime);
   slot_[c.finger]->publish();
   return "";
+}
+
+// Takes the finger's new plan at loop time `now`. Its time 0 is now, unless it belongs to the
+// batch taken last (the same source and utime: the fingers of one pinch, sent together but
+// arriving ticks apart): then it is the batch's time 0, so that the fingers move in step, and
+// the first leg, from where the finger is, takes what is left of it. A plan taken too late for
+// that (its first point out of reach by its time at the speed limit) starts now.
+void RemoteDevice::take(Follow& fo, double now, const FingerState& at) noexcept {
+  const Plan& pl = *fo.plan;
+  fo.seg = 0;
+  fo.start = at.position;
+  fo.t0 = now;
+  fo.leg_from = 0.0;
+  if (pl.batch != 0 && pl.batch == batch_) {
+    const double late = now - batch_t0_, left = pl.t[0] - late;
+    if (left > 0.0 && (pl.p[0] - at.position).norm() <= max_speed() * left + kStartTolerance) {
+      fo.t0 = batch_t0_;
+      fo.leg_from = late;
+    }
+    return;
+  }
+  batch_ = pl.batch;
+  batch_t0_ = now;
 }
 
 void RemoteDevice::follow(int f, double now, FingerState& out) noexcept {
   Follow& fo = follow_[f];
   if (slot_[f]->acquire()) {
     fo.plan = &slot_[f]->front();
-    fo.t0 = now;
-    fo.seg = 0;
-    fo.start = out.position;
+    take(fo, now, out);
     taken_.fetch_add(1, std::memory_order_relaxed);
   }
   if (fo.plan == nullptr) {
@@ -118,8 +141,9 @@ void RemoteDevice::follow(int f, double now, FingerState& out) noexcept {
   const double t = now - fo.t0;
   if (t < pl.t[0]) {  // the leg from where the finger was to the first point
     const Vec3 d = pl.p[0] - fo.start;
-    out.velocity = d / pl.t[0];
-    out.position = fo.start + d * (t / pl.t[0]);
+    const double leg = pl.t[0] - fo.leg_from;
+    out.velocity = d / leg;
+    out.position = fo.start + d * ((t - fo.leg_from) / leg);
     return;
   }
   while (fo.seg + 1 < pl.n && pl.t[fo.seg + 1] <= t) ++fo.seg;

@@ -61,15 +61,18 @@ class RemoteDevice final : public Device, public RemoteCommandSink {
     int n = 0;
     std::vector<double> t;
     std::vector<Vec3> p;
+    std::uint64_t batch = 0;  // source and utime: the commands sent together (0: none)
   };
   struct Follow {            // real-time side, one per finger
     const Plan* plan = nullptr;
-    double t0 = 0.0;
+    double t0 = 0.0;         // loop time of the plan's time 0
+    double leg_from = 0.0;   // plan time the first leg starts (> 0: taken late in its batch)
     int seg = 0;
     Vec3 start = Vec3::Zero();
   };
   std::string validate(const TrajectoryCommand& cmd) const;
   void follow(int f, double now, FingerState& out) noexcept;
+  void take(Follow& fo, double now, const FingerState& at) noexcept;
 
   DeviceOptions opt_;
   DeviceInfo info_;
@@ -79,6 +82,8 @@ class RemoteDevice final : public Device, public RemoteCommandSink {
   std::array<Follow, kMaxFingers> follow_{};
   std::array<std::array<std::atomic<double>, 3>, kMaxFingers> where_{};  // RT -> validation
   std::atomic<std::uint64_t> taken_{0};
+  std::uint64_t batch_ = 0;      // RT side: the batch taken last, and the loop time it started
+  double batch_t0_ = 0.0;
   DeviceState last_;
   DeviceCommand last_cmd_;
   DeviceCounters counters_;

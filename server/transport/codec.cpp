@@ -122,6 +122,7 @@ std::string to_device_command(const hapticloth::trajectory_cmd_t& m, const Scene
   out.finger = m.finger;
   out.source = m.source;
   out.seq = m.seq;
+  out.utime = m.utime;
   out.times.assign(m.times.begin(), m.times.end());
   out.positions.resize(m.num_points);
   // p_device = R^T (p_scene - origin) for the scene frame (R is a rotation).

@@ -175,26 +175,30 @@ class Client:
             if self._ack_sub is None:
                 self._ack_sub = self.subscribe_events(self._on_event)
 
-    def inject_trajectory(self, finger, times, positions, frame="device", wait=None):
+    def inject_trajectory(self, finger, times, positions, frame="device", wait=None, utime=None):
         """Sends a trajectory_cmd_t: the finger moves in a straight line to positions[0]
         (reached times[0] s after the server takes it), then through the points (m, `frame`
         "device" or "scene"). Returns the command's sequence number; with wait=seconds, returns
-        (seq, accepted, text) from the server's event, or raises TimeoutError."""
+        (seq, accepted, text) from the server's event, or raises TimeoutError. Commands given
+        the same `utime` are one batch: they start together (see `send`)."""
         if wait:
             self.listen_for_answers()
-        seq = self.send(trajectory_message(finger, times, positions, frame))
+        seq = self.send(trajectory_message(finger, times, positions, frame), utime)
         if not wait:
             return seq
         return (seq,) + self.wait_ack(seq, wait)
 
-    def send(self, m):
+    def send(self, m, utime=None):
         """Sends the trajectory_cmd_t `m` as this client's next command (its source, seq and
-        utime are set here); returns its sequence number."""
+        utime are set here; `utime` gives the send time of a batch: the server starts the
+        commands of one source and utime together, at the tick it took the first of them, so
+        two fingers sent back to back move in step however far apart they arrive); returns its
+        sequence number."""
         with self._lock:
             self._seq += 1
             m.seq = self._seq
         m.source = self.source
-        m.utime = now_utime()
+        m.utime = now_utime() if utime is None else utime
         self.publish("trajectory", m.encode())
         return m.seq
 
@@ -204,7 +208,9 @@ class Client:
         with wait=seconds, the answers are awaited: returns {finger: (seq, accepted, text)}."""
         if wait:
             self.listen_for_answers()
-        seqs = {f: self.inject_trajectory(f, t, p, frame=frame) for f, (t, p) in trajectories.items()}
+        batch = now_utime()
+        seqs = {f: self.inject_trajectory(f, t, p, frame=frame, utime=batch)
+                for f, (t, p) in trajectories.items()}
         if not wait:
             return seqs
         return {f: (seq,) + self.wait_ack(seq, wait) for f, seq in seqs.items()}
@@ -236,11 +242,14 @@ class Client:
         returns the messages sent, with their sequence numbers."""
         start = time.monotonic()
         sent = []
+        batch, batch_due = None, None
         for due, m in commands:
             delay = start + due - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
-            self.send(m)
+            if due != batch_due:  # the commands due together are one batch: they start together
+                batch, batch_due = now_utime(), due
+            self.send(m, batch)
             sent.append(m)
         return sent
 
