@@ -242,6 +242,7 @@ std::unique_ptr<transport::Hub> open_transport(const Scene& scene, const ServeOp
   info.haptic_rate = sc.haptic_rate;
   transport::TransportOptions to = opt.transport;
   to.finger_radius = sc.finger.radius;
+  to.hold_until_session = true;  // clients get the scene, and commands are taken, once it runs
   std::unique_ptr<transport::Hub> hub;
   try {
     hub = transport::make_hub(to, info);
@@ -274,6 +275,7 @@ void attach(const Scene& scene, const ServeOptions& opt, devices::DeviceHandle& 
   drops.hub = &hub;
   session.add_observer(&hub);
   session.add_observer(&drops);
+  hub.session_started();
   const char* clock = !opt.realtime ? "stepped" : scene.haptics.device_clock ? "device" : "loop";
   hub.post_event("started", "scene " + scene.name + ", device " + dev.info().name + ", clock " + clock);
 }

@@ -11,9 +11,10 @@ void CommandIntake::set_sink(devices::RemoteCommandSink* sink) {
   if (sink_) sink_->set_max_speed(max_speed_);
 }
 
-std::string CommandIntake::handle(const hapticloth::trajectory_cmd_t& m) {
+std::string CommandIntake::handle(const hapticloth::trajectory_cmd_t& m, bool live) {
   devices::TrajectoryCommand c;
-  std::string why = to_device_command(m, scene_, c);
+  std::string why = live ? to_device_command(m, scene_, c)
+                         : "the session has not started (the server is settling its cloth)";
   if (why.empty()) {
     std::lock_guard<std::mutex> lock(sink_mu_);
     why = sink_ ? sink_->submit(c) : "no remote device (run the server with --device remote)";
@@ -35,10 +36,10 @@ std::string CommandIntake::handle(const hapticloth::trajectory_cmd_t& m) {
   return why;
 }
 
-void CommandIntake::on_bytes(const std::uint8_t* d, std::size_t n) {
+void CommandIntake::on_bytes(const std::uint8_t* d, std::size_t n, bool live) {
   hapticloth::trajectory_cmd_t m;
   if (decode(d, n, m)) {
-    handle(m);
+    handle(m, live);
     return;
   }
   rejected_.fetch_add(1);

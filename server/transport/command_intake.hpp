@@ -23,10 +23,11 @@ class CommandIntake {
 
   /// Where commands go (nullptr: rejected, "no remote device"); sets its speed limit.
   void set_sink(devices::RemoteCommandSink* sink);
-  /// Returns "" if accepted, else the reason (also a "command_rejected" event).
-  std::string handle(const hapticloth::trajectory_cmd_t& m);
+  /// Returns "" if accepted, else the reason (also a "command_rejected" event). Before the
+  /// session (`live` false) every command is rejected: the server is settling its cloth.
+  std::string handle(const hapticloth::trajectory_cmd_t& m, bool live = true);
   /// A command's bytes as they arrive: decoded and handled, or rejected, counted, with an event.
-  void on_bytes(const std::uint8_t* d, std::size_t n);
+  void on_bytes(const std::uint8_t* d, std::size_t n, bool live = true);
 
   std::uint64_t accepted() const { return accepted_.load(); }
   std::uint64_t rejected() const { return rejected_.load(); }

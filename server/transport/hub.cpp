@@ -19,15 +19,16 @@ const TransportOptions& checked(const TransportOptions& opt, const SceneInfo& sc
 }  // namespace
 
 Hub::Hub(const TransportOptions& opt, SceneInfo scene)
-    : opt_(checked(opt, scene)),
+    : live_(!opt.hold_until_session),
+      opt_(checked(opt, scene)),
       scene_(std::move(scene)),
       messages_(opt_, scene_),
       commands_(scene_, opt_.max_command_speed, events_, !opt_.lcm_log.empty()),
       loops_(scene_.rest_positions.size(), scene_.device.fingers, opt_.cloth_rate),
       transports_(opt_, HubTransports::Inputs{
-                            [this](const std::uint8_t* d, std::size_t n) { commands_.on_bytes(d, n); },
-                            [this] { messages_.request(); },
-                            [this] { return messages_.info_bytes(); }}),
+                            [this](const std::uint8_t* d, std::size_t n) { commands_.on_bytes(d, n, live_.load()); },
+                            [this] { if (live_.load()) messages_.request(); },
+                            [this] { return live_.load() ? messages_.info_bytes() : std::vector<std::uint8_t>{}; }}),
       publisher_(opt_, messages_, loops_, events_, commands_, transports_) {}
 
 Hub::~Hub() { finish(); }

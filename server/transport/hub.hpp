@@ -27,6 +27,7 @@
 
 #include <array>
 #include <cstdint>
+#include <atomic>
 #include <memory>
 #include <string>
 #include <vector>
@@ -82,7 +83,17 @@ class Hub : public haptics::SessionObserver {
   void note_dropped_packets(std::uint64_t total) { events_.note_dropped_packets(total); }
   /// Handles a trajectory command as if it had arrived (both transports call this). Returns ""
   /// if accepted, else the reason (also published as a "command_rejected" event).
-  std::string handle_command(const hapticloth::trajectory_cmd_t& m) { return commands_.handle(m); }
+  std::string handle_command(const hapticloth::trajectory_cmd_t& m) { return commands_.handle(m, live_.load()); }
+
+  /// With TransportOptions::hold_until_session (the server opens its Hub before the preroll,
+  /// so that a bad endpoint is found at once), the Hub is there for clients from this call on:
+  /// the scene is published and answered, commands are taken. Until then a scene query gets no
+  /// answer and a command is rejected ("the session has not started"), as when the endpoint
+  /// was not open yet.
+  void session_started() {
+    live_.store(true);
+    messages_.request();
+  }
 
   /// Publishes everything pending now and returns when done (tests, shutdown).
   void flush() { publisher_.flush(); }
@@ -101,6 +112,7 @@ class Hub : public haptics::SessionObserver {
  private:
   // In the order they are built; the transports' input callbacks reach the parts before them,
   // and the publisher all of them, so it is built last (its thread stops first).
+  std::atomic<bool> live_;  // answering clients (hold_until_session, session_started)
   TransportOptions opt_;
   SceneInfo scene_;
   SceneMessages messages_;

@@ -20,6 +20,10 @@ struct TransportOptions {
   double cloth_rate = 60.0;             ///< Hz, cloth state messages
   double haptic_batch = 0.01;           ///< s, haptic samples per message (1 kHz batched)
   double max_command_speed = 1.0;       ///< m/s, fastest fingertip a trajectory command may ask
+  /// The Hub is opened before the session (the server: before its preroll) and is there for
+  /// clients only from Hub::session_started(): no scene published or answered, commands
+  /// rejected, until then.
+  bool hold_until_session = false;
 };
 
 // Checks of the options' values, each "" or why the value is wrong (without the option's name,

@@ -6,7 +6,8 @@
 
 namespace hapticloth::transport {
 
-SceneMessages::SceneMessages(const TransportOptions& opt, const SceneInfo& scene) : scene_(scene) {
+SceneMessages::SceneMessages(const TransportOptions& opt, const SceneInfo& scene)
+    : scene_(scene), requested_(!opt.hold_until_session) {
   hapticloth::scene_info_t si;
   si.utime = wall_utime();
   si.server_name = opt.server_name;

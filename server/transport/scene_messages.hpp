@@ -15,7 +15,8 @@ namespace hapticloth::transport {
 class SceneMessages {
  public:
   /// Encodes scene_info_t: the scene, the rates and limits of `opt`, every topic with its key
-  /// expression and LCM channel, and the topology. The start counts as a request.
+  /// expression and LCM channel, and the topology. The start counts as a request (unless
+  /// opt.hold_until_session: the session's start does).
   SceneMessages(const TransportOptions& opt, const SceneInfo& scene);
 
   /// Any thread: the encoded scene_info_t.
@@ -31,7 +32,7 @@ class SceneMessages {
  private:
   const SceneInfo& scene_;
   std::vector<std::uint8_t> info_;
-  std::atomic<bool> requested_{true};
+  std::atomic<bool> requested_;
 };
 
 }  // namespace hapticloth::transport

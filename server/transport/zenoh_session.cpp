@@ -31,7 +31,7 @@ std::string without_source_paths(std::string m) {
 void answer_query(const HzQuery* q, const char*, std::size_t, void* ctx) {
   try {
     const std::vector<std::uint8_t> bytes = (*static_cast<ZenohQueryable::Answer*>(ctx))();
-    hz_query_reply(q, bytes.data(), bytes.size());
+    if (!bytes.empty()) hz_query_reply(q, bytes.data(), bytes.size());  // empty: no answer (yet)
   } catch (...) {
     // A failed answer leaves the query without a reply; the client times out.
   }

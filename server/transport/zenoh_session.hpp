@@ -75,7 +75,8 @@ class ZenohSubscriber {
   HzSubscriber* sub_ = nullptr;
 };
 
-/// Answers every query on `key` with the bytes `answer()` returns (on a zenoh thread).
+/// Answers every query on `key` with the bytes `answer()` returns (on a zenoh thread); no
+/// answer while it returns none.
 class ZenohQueryable {
  public:
   using Answer = std::function<std::vector<std::uint8_t>()>;

@@ -617,6 +617,11 @@ def veth_client(endpoint):
     c.subscribe_haptics(s.on_haptics)
     c.subscribe_state(s.on_cloth)
     _, ok, _ = c.inject_trajectory(1, [0.5], [[0.06, 0.04, 0.0]], wait=5.0)
+    # The server answers from before its preroll (its transports open first): count 1.5 s of
+    # the session from its first haptic sample.
+    deadline = time.monotonic() + 40
+    while not s.t and time.monotonic() < deadline:
+        time.sleep(0.05)
     time.sleep(1.5)
     c.close()
     print(json.dumps({"triangles": scene.topology.num_triangles, "accepted": ok,

@@ -103,6 +103,24 @@ TEST(Names, KeyExpressionsAndChannels) {
   EXPECT_STREQ(topic_name(Topic::Haptics), "haptics");
 }
 
+// Opened before the preroll, the server's Hub is there for clients once its session starts:
+// until then a command is rejected, saying why (the transports used to open after the preroll).
+TEST(Hub, RejectsCommandsBeforeTheSession) {
+  TransportOptions o = options();
+  o.zenoh = false;
+  o.hold_until_session = true;
+  Hub hub(o, small_scene());
+  hapticloth::trajectory_cmd_t m{};
+  m.finger = 0;
+  m.num_points = 1;
+  m.times = {0.5};
+  m.positions = {{0.0, 0.0, 0.0}};
+  EXPECT_NE(hub.handle_command(m).find("the session has not started"), std::string::npos);
+  hub.session_started();
+  EXPECT_EQ(hub.handle_command(m).find("the session has not started"), std::string::npos);
+  EXPECT_EQ(hub.stats().commands_rejected, 2u);  // the second: no remote device
+}
+
 TEST(Hub, RejectsABadServerName) {
   TransportOptions o = options();
   o.zenoh = false;

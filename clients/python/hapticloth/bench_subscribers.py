@@ -29,19 +29,28 @@ from .errors import UserError, check_number, run_cli
 LCM_URL = "udpm://239.255.76.67:7667?ttl=0"
 TOPICS = ("cloth", "haptics", "stats", "events")
 
-# One subscriber process: every topic, counting what arrives, for argv[3] seconds.
+# One subscriber process: every topic, counting what arrives for argv[3] seconds from the first
+# haptic sample (the server answers from before its preroll; its session starts after it), the
+# wait for that bounded by a minute.
 SUBSCRIBER = r"""
 import sys, time
 from hapticloth.client import Client
 transport, where, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
 c = (Client("zenoh", server="bench", endpoint=where) if transport == "zenoh"
      else Client("lcm", server="bench", lcm_url=where))
-n = {"count": 0}
+n = {"count": 0, "haptics": 0}
 def got(m):
     n["count"] += 1
-for t in ("cloth", "haptics", "stats", "events"):
+def got_haptics(m):
+    n["haptics"] += 1
+    got(m)
+for t in ("cloth", "stats", "events"):
     c.subscribe(t, got, raw=True)
+c.subscribe("haptics", got_haptics, raw=True)
 print("ready", flush=True)
+first = time.monotonic() + 60
+while n["haptics"] == 0 and time.monotonic() < first:
+    time.sleep(0.01)
 end = time.monotonic() + seconds
 while time.monotonic() < end:
     time.sleep(0.05)
