@@ -179,8 +179,14 @@ def test_period_error_agrees_with_the_loops_own_statistics(tmp_path):
     err = plot.period_errors_us(run, 1000.0)[session]
     loop = summary["period_error_us"]
     assert err.max() == pytest.approx(loop["max"], abs=1.0), (err.max(), loop)
-    for q, key in ((50, "p50"), (99, "p99")):
-        assert abs(np.percentile(err, q) - loop[key]) <= 1.5, (q, np.percentile(err, q), loop)
+    # The loop's quantile: the 1 us bin of the ceil(q n)-th smallest value, at the bin's middle;
+    # the plot's to within one value on either side of that rank (once in ten runs the tail
+    # differed by one tick, not reproduced since).
+    ranked = np.sort(err)
+    for q, key in ((50, "p50"), (99, "p99"), (99.9, "p999")):
+        r = int(np.ceil(q / 100 * n)) - 1
+        lo, hi = ranked[max(r - 1, 0)], ranked[min(r + 1, n - 1)]
+        assert np.floor(lo) - 0.5 <= loop[key] <= np.floor(hi) + 1.5, (q, lo, hi, loop)
 
 
 def test_stepped_clock_log_without_loop_stats_plots(tmp_path):
