@@ -1,5 +1,7 @@
 #include "transport/hub_transports.hpp"
 
+#include <sys/stat.h>
+
 #include "transport/codec.hpp"
 #include "transport/foxglove_sink.hpp"
 #include "transport/lcm_bus.hpp"
@@ -54,10 +56,23 @@ std::string HubTransports::close() {
   for (auto& p : zpub_) p.reset();
   zenoh_.reset();
   std::string lost = fox_error_;
-  if (const std::uint64_t n = log_failed_.load(); n > 0)
-    lost += (lost.empty() ? "" : "; ") + std::string("LCM log ") + log_path_ + ": " + std::to_string(n) +
-            " messages could not be written (the disk is full or the file failed)";
+  if (!log_path_.empty()) {
+    struct stat st {};
+    const std::uint64_t want = log_bytes_.load();
+    const std::uint64_t have = ::stat(log_path_.c_str(), &st) == 0 && S_ISREG(st.st_mode)
+                                   ? static_cast<std::uint64_t>(st.st_size) : 0;
+    if (have < want)
+      lost += (lost.empty() ? "" : "; ") + std::string("LCM log ") + log_path_ + ": " + std::to_string(have) +
+              " of " + std::to_string(want) + " bytes written; messages could not be written (the disk is "
+              "full or the file failed)";
+  }
   return lost;
+}
+
+void HubTransports::log(const std::string& channel, const std::vector<std::uint8_t>& bytes) {
+  constexpr std::uint64_t kEventHeader = 4 + 8 + 8 + 4 + 4;  // sync, number, time, lengths
+  log_bytes_.fetch_add(kEventHeader + channel.size() + bytes.size());
+  log_->publish(channel, bytes.data(), bytes.size());
 }
 
 bool HubTransports::wanted(Topic t) const {
@@ -75,13 +90,13 @@ void HubTransports::send(Topic t, const std::vector<std::uint8_t>& bytes) {
   const int i = static_cast<int>(t);
   if (zpub_[i] && zpub_[i]->matching()) zpub_[i]->put(bytes.data(), bytes.size());
   if (lcm_) lcm_->publish(channel_[i], bytes.data(), bytes.size());
-  if (log_ && !log_->publish(channel_[i], bytes.data(), bytes.size())) log_failed_.fetch_add(1);
+  if (log_) log(channel_[i], bytes);
   if (fox_ && fox_->wants(t)) fox_->send(t, bytes.data(), bytes.size(), wall_utime());
   published_[i].fetch_add(1, std::memory_order_relaxed);
 }
 
 void HubTransports::log_command(const std::vector<std::uint8_t>& bytes) {
-  if (log_ && !log_->publish(lcm_channel("trajectory"), bytes.data(), bytes.size())) log_failed_.fetch_add(1);
+  if (log_) log(lcm_channel("trajectory"), bytes);
 }
 
 }  // namespace hapticloth::transport

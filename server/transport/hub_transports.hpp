@@ -73,8 +73,12 @@ class HubTransports {
   std::unique_ptr<LcmBus> lcm_, log_;
   std::unique_ptr<FoxgloveSink> fox_;
   std::string fox_error_;  // the recording could not be finished (close)
+  void log(const std::string& channel, const std::vector<std::uint8_t>& bytes);
   std::string log_path_;
-  std::atomic<std::uint64_t> log_failed_{0};  // LCM log messages the file provider could not write
+  // LCM's file provider does not report a failed write (publish returns 0 either way): the log
+  // must hold, once closed, the bytes of every event given to it (28-byte header, channel,
+  // data), else some were lost.
+  std::atomic<std::uint64_t> log_bytes_{0};
   std::array<std::string, kTopics> channel_;
   std::array<std::atomic<std::uint64_t>, kTopics> published_{}, skipped_{};
 };
