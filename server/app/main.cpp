@@ -122,9 +122,9 @@ int run_headless_job(const Args& a, const app::Scene& scene) {
   }
   // A signal while the model is built stops the run before its first step (the summary says so).
   app::RunSummary r = app::run_headless(scene, steps, &app::install_stop_signals());
-  if (r.stopped_after_of)
+  if (r.steps_asked_when_stopped)
     r.stopped = std::string("by ") + app::stop_signal_name() + " after " +
-                std::to_string(r.steps) + " of " + std::to_string(r.stopped_after_of) + " steps";
+                std::to_string(r.steps) + " of " + std::to_string(r.steps_asked_when_stopped) + " steps";
   std::cout << (a.json ? r.to_json() + "\n" : r.to_text());
   return r.finite ? 0 : 1;
 }

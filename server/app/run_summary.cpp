@@ -59,7 +59,7 @@ RunSummary run_headless(const Scene& scene, long steps, const std::atomic<bool>*
   r.dt = scene.integrator.dt;
   r.alpha = scene.integrator.alpha;
   r.steps = steps;
-  if (steps < asked) r.stopped_after_of = asked;
+  if (steps < asked) r.steps_asked_when_stopped = asked;
   r.simulated_s = s.time;
   r.step_ms = percentiles(t_step);
   r.assemble_ms = percentiles(t_asm);
@@ -113,7 +113,7 @@ std::string RunSummary::to_json() const {
   j["finite"] = finite;
   j["wall_s"] = wall_s;
   j["events"] = events_json(events);
-  j["stopped"] = stopped_after_of ? nlohmann::json(stopped) : nlohmann::json(nullptr);
+  j["stopped"] = steps_asked_when_stopped ? nlohmann::json(stopped) : nlohmann::json(nullptr);
   return j.dump();
 }
 
@@ -142,7 +142,7 @@ std::string RunSummary::to_text() const {
      << ", solver " << events.solver_not_converged + events.solver_error << ", not-SPD "
      << events.not_positive_definite << ", energy " << events.energy_explosions << ", retries "
      << events.retries << ", restores " << events.restores << ")\n";
-  if (stopped_after_of) os << "stopped          " << stopped << "\n";
+  if (steps_asked_when_stopped) os << "stopped          " << stopped << "\n";
   return os.str();
 }
 

@@ -34,7 +34,7 @@ struct RunSummary {
   bool finite = true;
   /// A stop signal ended the run after `steps` of these (0: it ran them all); `stopped` says by
   /// what ("by SIGTERM after 1234 of 10000 steps"), filled by the caller that knows the signal.
-  long stopped_after_of = 0;
+  long steps_asked_when_stopped = 0;
   std::string stopped;
   std::string to_json() const;
   std::string to_text() const;
