@@ -295,6 +295,22 @@ def handler_installed(pid: int, sig: int) -> bool:
     return m is not None and bool(int(m.group(1), 16) & (1 << (sig - 1)))
 
 
+def signal_once_running(cmd, cwd, sig, after=0.0):
+    """Starts `cmd`, sends `sig` `after` s once its main catches it (bounded waits); returns
+    (exit status, stdout, stderr)."""
+    p = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert wait_until(lambda: handler_installed(p.pid, sig) or p.poll() is not None, 10.0)
+        time.sleep(after)
+        p.send_signal(sig)
+        stdout, stderr = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.communicate()
+    return p.returncode, stdout, stderr
+
+
 def scene_of(tmp_path: Path, resolution: int, preroll: float) -> Path:
     """The hanging square at `resolution` x `resolution` quads with the given preroll, beside
     copies of the scenes' script and materials."""
@@ -319,17 +335,9 @@ def test_a_signal_during_set_up_stops_before_anything_runs(signame, tmp_path):
     out.mkdir()
     cmd = [str(wait_for_program("hapticloth-server")), "--scene", str(scene), "--device", "mock",
            "--no-zenoh", "--record", str(out / "record.csv"), "--lcm-log", str(out / "session.lcm")]
-    p = subprocess.Popen(cmd, cwd=out, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        assert wait_until(lambda: handler_installed(p.pid, SIGNALS[signame]) or p.poll() is not None, 10.0)
-        p.send_signal(SIGNALS[signame])
-        stdout, stderr = p.communicate(timeout=60)  # the 600 s preroll never starts
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.communicate()
-    said = f"exit {p.returncode}\nstdout: {stdout}\nstderr: {stderr}"
-    assert p.returncode == 0, said
+    rc, stdout, stderr = signal_once_running(cmd, out, SIGNALS[signame])  # the 600 s preroll never starts
+    said = f"exit {rc}\nstdout: {stdout}\nstderr: {stderr}"
+    assert rc == 0, said
     assert f"hapticloth-server: stopped by {signame} during set-up (nothing ran)" in stderr, said
     assert "stage" not in stdout and "haptic ticks" not in stdout, said
     assert sorted(q.name for q in out.iterdir()) == [], said
@@ -342,18 +350,9 @@ def test_sigterm_stops_a_headless_run_with_its_summary(as_json, tmp_path):
     scene = scene_of(tmp_path, 40, preroll=0.0)
     cmd = [str(wait_for_program("hapticloth-server")), "--scene", str(scene), "--headless",
            "--duration", "100000"] + (["--json"] if as_json else [])
-    p = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        assert wait_until(lambda: handler_installed(p.pid, signal.SIGTERM) or p.poll() is not None, 10.0)
-        time.sleep(1.0)  # steps run
-        p.send_signal(signal.SIGTERM)
-        stdout, stderr = p.communicate(timeout=60)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.communicate()
-    said = f"exit {p.returncode}\nstdout: {stdout}\nstderr: {stderr}"
-    assert p.returncode == 0, said
+    rc, stdout, stderr = signal_once_running(cmd, tmp_path, signal.SIGTERM, after=1.0)  # steps run
+    said = f"exit {rc}\nstdout: {stdout}\nstderr: {stderr}"
+    assert rc == 0, said
     asked = round(100000 / 0.001)  # the scene's dt: 1 ms
     if as_json:
         j = json.loads(stdout)
