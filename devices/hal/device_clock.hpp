@@ -10,13 +10,15 @@
 
 #include "hal/device.hpp"
 #include "hal/handle.hpp"
+#include "hal/wake_clock.hpp"
 
 namespace hapticloth::devices {
 
 class DeviceClock {
  public:
-  /// `period`: the loop's nominal period, s (> 0).
-  explicit DeviceClock(double period);
+  /// `period`: the loop's nominal period, s (> 0). `clock`: what the waits read and sleep on
+  /// (the device's await_sample deadlines are on it too); it must outlive this.
+  explicit DeviceClock(double period, const WakeClock& clock = MonotonicClock::instance());
 
   struct Tick {
     double at = 0.0;       ///< CLOCK_MONOTONIC, s: when the loop woke for this tick
@@ -33,6 +35,7 @@ class DeviceClock {
   template <class D>
   Tick wait_on(D& dev, double last) const noexcept;
   double period_;
+  const WakeClock* clock_;
 };
 
 }  // namespace hapticloth::devices
