@@ -8,7 +8,12 @@
 
 namespace hapticloth::cloth {
 
-WorkerPool::WorkerPool() : thread_([this] { helper_loop(); }) {}
+std::int64_t WorkerPool::steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+WorkerPool::WorkerPool(NanoClock clock) : clock_(clock), thread_([this] { helper_loop(); }) {}
 
 WorkerPool::~WorkerPool() {
   stop_.store(true, std::memory_order_release);
@@ -54,9 +59,9 @@ void WorkerPool::run_raw(int n, void (*fn)(void*, int), void* ctx) {
   work(false);
   // The helper may still be inside its last index: wait for it (a few tens of us at most).
   if (done_.load(std::memory_order_acquire) == n) return;
-  const auto t0 = std::chrono::steady_clock::now();
+  const std::int64_t t0 = clock_();
   spin_while([&] { return done_.load(std::memory_order_acquire) < n; });
-  caller_wait_ns_ += std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count();
+  caller_wait_ns_ += clock_() - t0;
 }
 
 // A new generation with no index to claim: the helper wakes, finds nothing, and (in a burst)
@@ -78,9 +83,12 @@ void WorkerPool::helper_loop() {
   std::uint32_t seen = 0;
   for (;;) {
     // In a burst, spin until the next run (or the burst's end); then sleep as usual.
-    spin_while([&] {
-      return bursts_.load(std::memory_order_acquire) > 0 && generation_.load(std::memory_order_acquire) == seen;
-    });
+    spin_while(
+        [&] {
+          return bursts_.load(std::memory_order_acquire) > 0 && generation_.load(std::memory_order_acquire) == seen;
+        },
+        &helper_spin_blocks_);
+    if (generation_.load(std::memory_order_acquire) == seen) helper_sleeps_.fetch_add(1, std::memory_order_relaxed);
     generation_.wait(seen, std::memory_order_acquire);
     seen = generation_.load(std::memory_order_acquire);
     if (stop_.load(std::memory_order_acquire)) return;

@@ -17,7 +17,11 @@ namespace hapticloth::cloth {
 
 class WorkerPool {
  public:
-  WorkerPool();
+  /// What the caller's waits are timed with, in ns (a test injects its own).
+  using NanoClock = std::int64_t (*)();
+  static std::int64_t steady_ns();
+
+  explicit WorkerPool(NanoClock clock = steady_ns);
   ~WorkerPool();
   WorkerPool(const WorkerPool&) = delete;
   WorkerPool& operator=(const WorkerPool&) = delete;
@@ -50,6 +54,10 @@ class WorkerPool {
   std::int64_t caller_wait_ns() const { return caller_wait_ns_; }
   /// Indices the helper took over the pool's life (the rest were the caller's).
   std::uint64_t helper_share() const { return helper_done_.load(std::memory_order_relaxed); }
+  /// How the helper spends the time between runs, over the pool's life: the times it went to
+  /// sleep on the futex, and its spins between runs in thousands of rounds (1024 each).
+  std::uint64_t helper_sleeps() const { return helper_sleeps_.load(std::memory_order_relaxed); }
+  std::uint64_t helper_spin_blocks() const { return helper_spin_blocks_.load(std::memory_order_relaxed); }
 
  private:
   template <class F>
@@ -61,14 +69,16 @@ class WorkerPool {
   void helper_loop();
   static void pause();
   // Spins while keep() holds, giving the core away every 1024 rounds (in case the thread waited
-  // for shares it).
+  // for shares it); `blocks` counts those rounds.
   template <class F>
-  static void spin_while(F&& keep) {
+  static void spin_while(F&& keep, std::atomic<std::uint64_t>* blocks = nullptr) {
     for (int spins = 1; keep(); ++spins)
-      if (spins % 1024 == 0)
+      if (spins % 1024 == 0) {
+        if (blocks) blocks->fetch_add(1, std::memory_order_relaxed);
         std::this_thread::yield();
-      else
+      } else {
         pause();
+      }
   }
   int claim(bool from_back);
   int work(bool from_back);
@@ -82,6 +92,9 @@ class WorkerPool {
   std::atomic<bool> stop_{false};
   std::atomic<int> bursts_{0};
   std::atomic<std::uint64_t> helper_done_{0};
+  std::atomic<std::uint64_t> helper_sleeps_{0};
+  std::atomic<std::uint64_t> helper_spin_blocks_{0};
+  NanoClock clock_;
   std::int64_t caller_wait_ns_ = 0;
   std::thread thread_;
 };

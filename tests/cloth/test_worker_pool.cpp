@@ -7,7 +7,6 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
-#include <ctime>
 #include <thread>
 #include <vector>
 
@@ -29,15 +28,22 @@ TEST(WorkerPool, RunsEveryIndexOncePerRun) {
   }
 }
 
+// The caller's index waits until the helper has taken one (bounded: 2 s is a safety limit, not
+// a figure), so the helper's share grows whenever the caller is busy.
 TEST(WorkerPool, TheHelperTakesWorkWhenTheCallerIsBusy) {
   cloth::WorkerPool pool;
-  // Each index spins for 2 ms: the caller cannot take all four before the helper wakes.
-  auto slow = [](int) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(2);
-    while (std::chrono::steady_clock::now() < end) {
+  const auto caller = std::this_thread::get_id();
+  std::atomic<bool> helper_took{false};
+  auto fn = [&](int) {
+    if (std::this_thread::get_id() != caller) {
+      helper_took = true;
+      return;
     }
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+    while (!helper_took && std::chrono::steady_clock::now() < give_up) std::this_thread::yield();
   };
-  for (int run = 0; run < 10; ++run) pool.run(4, slow);
+  pool.run(4, fn);
+  EXPECT_TRUE(helper_took);
   EXPECT_GT(pool.helper_share(), 0u);
 }
 
@@ -52,16 +58,16 @@ TEST(WorkerPool, ARunAllocatesNothing) {
 }
 
 namespace {
-// The process's CPU time (all threads), s.
-double cpu_seconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-void spin_for(std::chrono::microseconds d) {
-  const auto end = std::chrono::steady_clock::now() + d;
-  while (std::chrono::steady_clock::now() < end) {
+// Polls `holds` every millisecond until it is true or 2 s have passed (a safety limit: on a
+// loaded machine a thread may wait a scheduler slice or two for its core, never seconds).
+template <class F>
+bool within_2s(F&& holds) {
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+  while (!holds()) {
+    if (std::chrono::steady_clock::now() > give_up) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
+  return true;
 }
 }  // namespace
 
@@ -94,36 +100,32 @@ TEST(WorkerPool, TheCallerTakesTheFrontAndTheHelperTheBack) {
     bool caller_first = true, helper_first = true;
     for (int k = 0; k < 3; ++k) {
       bool& first = who[k] == caller ? caller_first : helper_first;
-      if (first) EXPECT_EQ(order[k], who[k] == caller ? 0 : 2) << "run " << run << ", claim " << k;
+      if (first) {
+        EXPECT_EQ(order[k], who[k] == caller ? 0 : 2) << "run " << run << ", claim " << k;
+      }
       first = false;
     }
     EXPECT_FALSE(helper_first) << "run " << run << ": the helper took no index";
   }
 }
 
-// In a burst the helper spins between runs (its core busy while the caller is idle); once the
-// burst ends it sleeps again.
+// In a burst the helper spins between runs (its spin counter grows and it does not go to
+// sleep); once the burst ends it goes to sleep and its spinning stops.
 TEST(WorkerPool, TheHelperSpinsInABurstAndSleepsAfterIt) {
   cloth::WorkerPool pool;
   auto fn = [](int) {};
-  double busy = 0.0;
   {
     const cloth::WorkerPool::Burst burst(&pool);
     pool.run(2, fn);
-    // 10 ms of CPU while this thread sleeps: a spinning helper has it within 10-50 ms, even on
-    // a busy machine (ctest -j2); one asleep would not in the 2 s allowed.
-    const double c0 = cpu_seconds();
-    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(2);
-    while (cpu_seconds() - c0 < 0.01 && std::chrono::steady_clock::now() < give_up)
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    busy = cpu_seconds() - c0;
+    const std::uint64_t sleeps = pool.helper_sleeps(), spins = pool.helper_spin_blocks();
+    EXPECT_TRUE(within_2s([&] { return pool.helper_spin_blocks() > spins + 10; })) << "the helper does not spin";
+    EXPECT_EQ(pool.helper_sleeps(), sleeps) << "the helper slept in a burst";
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(5));  // the helper sees the burst end
-  const double c1 = cpu_seconds();
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  const double idle = cpu_seconds() - c1;
-  EXPECT_GE(busy, 0.01) << "the helper slept in a burst";
-  EXPECT_LT(idle, 0.01) << "the helper still spins after the burst";
+  const std::uint64_t sleeps = pool.helper_sleeps();
+  EXPECT_TRUE(within_2s([&] { return pool.helper_sleeps() > sleeps; })) << "the helper still spins after the burst";
+  const std::uint64_t spins = pool.helper_spin_blocks();
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(pool.helper_spin_blocks(), spins) << "the helper spins while asleep";
   pool.run(2, fn);  // and wakes for the next run
 }
 
@@ -131,44 +133,49 @@ TEST(WorkerPool, TheHelperSpinsInABurstAndSleepsAfterIt) {
 // what the caller does before its first run (the contact search before a step's assembly).
 TEST(WorkerPool, ABurstWakesTheHelperBeforeTheFirstRun) {
   cloth::WorkerPool pool;
-  std::this_thread::sleep_for(std::chrono::milliseconds(20));  // the helper asleep
-  double busy = 0.0;
+  ASSERT_TRUE(within_2s([&] { return pool.helper_sleeps() > 0; })) << "the helper never went to sleep";
+  const std::uint64_t spins = pool.helper_spin_blocks();
   {
     const cloth::WorkerPool::Burst burst(&pool);
-    // Over 0.3 s of this thread sleeping, a spinning helper takes 0.1-0.3 s of CPU (half a core
-    // or more, even under ctest -j2); an asleep one, with this loop, about 3 ms.
-    const double c0 = cpu_seconds();
-    std::this_thread::sleep_for(std::chrono::milliseconds(300));
-    busy = cpu_seconds() - c0;
+    EXPECT_TRUE(within_2s([&] { return pool.helper_spin_blocks() > spins; }))
+        << "the helper slept on in a burst with no run yet";
   }
-  EXPECT_GE(busy, 0.05) << "the helper slept on in a burst with no run yet";
   auto fn = [](int) {};
   pool.run(2, fn);  // the empty wake left the pool as it was
 }
 
-// The caller's waits for a slow helper are counted: the helper's index takes 100 ms, the
-// caller's none (it waits, bounded, until the helper has claimed one), so the caller waits
-// nearly 100 ms (50 ms or more even if it is descheduled on a busy machine); a run of one quick
-// index adds little.
+namespace {
+// A clock that moves 1 ms each time it is read.
+std::atomic<std::int64_t> ticking_now{0};
+std::int64_t ticking_clock() { return ticking_now += 1'000'000; }
+}  // namespace
+
+// The caller's waits for the helper are counted, timed on the pool's clock (here one that moves
+// 1 ms a reading: a wait is two readings). The helper's index holds until the caller has started
+// its wait (read the clock), so the caller waits, once; in a run where the caller's index holds
+// until the helper has finished its own, the caller has nothing to wait for and nothing is counted.
 TEST(WorkerPool, TheCallersWaitsForTheHelperAreCounted) {
-  cloth::WorkerPool pool;
+  cloth::WorkerPool pool(ticking_clock);
   const auto caller = std::this_thread::get_id();
   std::atomic<bool> helper_in{false};
-  auto fn = [&](int) {
+  auto helper_last = [&](int) {
     if (std::this_thread::get_id() != caller) {
+      const std::int64_t before = ticking_now;
       helper_in = true;
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      within_2s([&] { return ticking_now > before; });
       return;
     }
-    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(2);
-    while (!helper_in && std::chrono::steady_clock::now() < give_up) std::this_thread::yield();
+    within_2s([&] { return helper_in.load(); });
   };
-  pool.run(2, fn);
+  pool.run(2, helper_last);
   ASSERT_TRUE(helper_in) << "the helper never took an index";
-  const std::int64_t waited = pool.caller_wait_ns();
-  EXPECT_GE(waited, 50'000'000) << "a 100 ms index of the helper's, waited for";
-  EXPECT_LT(waited, 2'000'000'000);
-  auto quick = [](int) {};
-  pool.run(1, quick);  // one index: the caller's (or the helper's, then waited for briefly)
-  EXPECT_LT(pool.caller_wait_ns() - waited, 50'000'000);
+  EXPECT_EQ(pool.caller_wait_ns(), 1'000'000);
+
+  const std::uint64_t share = pool.helper_share();
+  auto caller_last = [&](int) {
+    if (std::this_thread::get_id() == caller) within_2s([&] { return pool.helper_share() > share; });
+  };
+  pool.run(2, caller_last);
+  ASSERT_GT(pool.helper_share(), share) << "the helper never took an index";
+  EXPECT_EQ(pool.caller_wait_ns(), 1'000'000) << "a wait counted when the helper was done";
 }
