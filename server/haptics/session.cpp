@@ -20,6 +20,7 @@
 #include "hal/device_clock.hpp"
 #include "hal/mono_clock.hpp"
 #include "hal/platform_timer.hpp"
+#include "haptics/deadlines.hpp"
 #include "haptics/refinement_schedule.hpp"
 #include "haptics/rendering_modes.hpp"
 
@@ -167,16 +168,10 @@ long Session::haptic_ticks(double seconds, double t_start, double period) {
     const double deadline = t_start + k * period;
     const double woke = wake_at(deadline);
     r_.haptic.period_error_us.add(std::abs(woke - deadline) * 1e6);
-    // A wake-up more than a period late (the kernel now and then wakes a thread milliseconds
-    // late): the ticks due meanwhile are skipped, counted as missed, not run in a burst.
-    const long due = static_cast<long>((woke - t_start) / period);
-    if (due > k) {
-      r_.haptic.missed_deadlines += static_cast<std::uint64_t>(due - k);
-      k = std::min(due, ticks - 1);
-    }
+    k = tick_after_wake(k, ticks, woke, t_start, period, r_.haptic);
     elapsed = k + 1;
     const double done = haptic_tick(k, woke, t_start);
-    count_deadline(woke, done, t_start + (k + 1) * period, period);
+    count_deadline(woke, done, t_start + (k + 1) * period, period, r_.haptic);
   }
   return elapsed;
 }
@@ -199,7 +194,7 @@ long Session::device_paced_ticks(double seconds, double t_start, double period) 
     last = t.at;
     last_sampled = t.sampled;
     const double done = haptic_tick(k, t.at, t_start);
-    count_deadline(t.at, done, t.at + period, period);
+    count_deadline(t.at, done, t.at + period, period, r_.haptic);
   }
   return std::lround((std::min(mono_now(), end) - t_start) / period);
 }

@@ -131,13 +131,6 @@ class Session {
   /// The observers see the step just taken: the refined children if they changed, then the
   /// cloth (simulation thread).
   void observe_step();
-  /// A tick begun at `woke` and done at `done` missed `next` (the next deadline) if it ended
-  /// after it, whatever made it late; it overran if its own compute (the loop and its
-  /// observers) took longer than the period, which a late start alone never makes it do.
-  void count_deadline(double woke, double done, double next, double period) {
-    if (done > next) ++r_.haptic.missed_deadlines;
-    if (done - woke > period) ++r_.haptic.overruns;
-  }
   // run_realtime()'s threads.
   void sim_thread_loop(double t_start, const std::atomic<bool>& stop_flag);
   std::string haptic_thread_priority();

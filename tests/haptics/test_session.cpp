@@ -323,12 +323,11 @@ cloth::ClothModel flat_square(int quads) {
 }
 
 // The cloth's own time against the session's (SessionReport::cloth_time): on the stepped clock
-// the cloth steps with the ticks and keeps pace; in real time a step far slower than its dt
-// (CHOLMOD on a 4050-triangle cloth: about 10 ms a 1 ms step) leaves the cloth in slow motion
-// against the hand, and the summary says how slow. A small cloth in real time reports the same
-// accounting (whether it keeps pace is the machine's figure: hapticloth-bench haptic prints
-// cloth_time_ratio beside the platform timer; asserted here it failed when the platform woke
-// the simulation thread late, 0.78 in a CI run of 2026-11-29).
+// the cloth steps with the ticks and keeps pace; in real time a step slower than its dt leaves
+// the cloth in slow motion against the hand, and the summary says how slow. Here every step is
+// held 5 ms by an observer on the simulation thread, so a 1 ms step cannot keep more than a fifth
+// of real time on any machine (how fast a real cloth keeps pace is the machine's figure:
+// hapticloth-bench haptic prints cloth_time_ratio beside the platform timer).
 TEST(Haptics, ReportsTheClothsTimeAgainstTheSessions) {
   const auto away = one_finger({{0.0, Vec3(0.15, 0.15, 0.2)}});  // touches nothing
   haptics::SessionConfig sc;
@@ -346,30 +345,31 @@ TEST(Haptics, ReportsTheClothsTimeAgainstTheSessions) {
     EXPECT_NEAR(rep.cloth_time_ratio(), 1.0, 1e-9);
   }
   {
-    auto r = rig(45);
+    struct SlowSteps : haptics::SessionObserver {
+      void on_sim_step(const haptics::ClothSnapshot&) noexcept override {
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      }
+    } slow;
+    auto r = rig(6);
+    r->session->add_observer(&slow);
     r->session->run_realtime(0.3);
     const auto rep = r->session->report();
-    EXPECT_NEAR(rep.sim_time, 0.3, 0.02);
+    EXPECT_GE(rep.sim_time, 0.3 - 1e-9) << "the session ran its length";
+    EXPECT_GT(rep.sim_steps, 0u);
     EXPECT_NEAR(rep.cloth_time, 1e-3 * static_cast<double>(rep.sim_steps), 1e-9);
-    EXPECT_LT(rep.cloth_time_ratio(), 0.5) << rep.to_text();
+    EXPECT_NEAR(rep.cloth_time_ratio(), rep.cloth_time / rep.sim_time, 1e-12) << rep.to_text();
+    EXPECT_LE(rep.cloth_time_ratio(), 0.2 + 1e-9) << rep.to_text();
     const std::string text = rep.to_text();
     EXPECT_NE(text.find("x the session's time"), std::string::npos) << text;
     EXPECT_NE(rep.to_json().find("\"cloth_time_ratio\""), std::string::npos);
   }
-  {
-    auto r = rig(6);
-    r->session->run_realtime(0.3);
-    const auto rep = r->session->report();
-    EXPECT_GT(rep.sim_steps, 0u);
-    EXPECT_NEAR(rep.cloth_time, 1e-3 * static_cast<double>(rep.sim_steps), 1e-9);
-    EXPECT_NEAR(rep.cloth_time_ratio(), rep.cloth_time / rep.sim_time, 1e-12) << rep.to_text();
-  }
 }
 
 // A tick whose own compute takes longer than the period (here an observer that takes 3 ms on
-// every 50th tick) is counted as an overrun, and the ticks due meanwhile as missed deadlines;
-// a late wake-up of the kernel's skips ticks but overruns none: the summary tells the loop's
-// own lateness from the kernel's.
+// every 50th tick) is counted as an overrun, and the ticks due meanwhile as missed deadlines, in
+// the session's summary. (Which late tick counts as what is test_deadlines, on given times; a
+// real-time run can add overruns whenever the machine preempts the loop, so only the holds'
+// own are asserted here.)
 TEST(Haptics, CountsTheTicksThatOverranTheirPeriod) {
   struct SlowEvery50th : haptics::SessionObserver {
     long ticks = 0;
@@ -390,10 +390,8 @@ TEST(Haptics, CountsTheTicksThatOverranTheirPeriod) {
   const long held = slow.ticks / 50;
   ASSERT_GE(held, 4) << rep.to_text();
   // Each hold overruns once and makes the loop skip the two or three ticks due meanwhile (all
-  // but a hold on the session's last tick). A kernel wake-up 1-9 ms late skips ticks and
-  // overruns none; a tick preempted for over a period (normal scheduling here) would overrun.
+  // but a hold on the session's last tick).
   EXPECT_GE(rep.haptic.overruns, static_cast<std::uint64_t>(held)) << rep.to_text();
-  EXPECT_LE(rep.haptic.overruns, static_cast<std::uint64_t>(held + 2)) << rep.to_text();
   EXPECT_GE(rep.haptic.missed_deadlines, rep.haptic.overruns + 2 * static_cast<std::uint64_t>(held - 1)) << rep.to_text();
   EXPECT_NE(rep.to_text().find(" of them overran their period"), std::string::npos);
   EXPECT_NE(rep.to_json().find("\"overruns\""), std::string::npos);
