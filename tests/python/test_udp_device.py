@@ -35,6 +35,7 @@ import subprocess
 import sys
 import time
 import tomllib
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -241,8 +242,8 @@ def test_udp_rig_presses_the_cloth_through_the_server(tmp_path):
     # The press was felt: contact ticks and a force on the finger, all finite.
     assert report["contact_ticks"] > 500
     # Pushing a hanging membrane (tension about 1 N/m, 0.2 m below the pins) 3 mm sideways
-    # takes about 2 pi T d / ln(R / a) ~ 0.006-0.01 N.
-    assert 0.003 < report["max_force_n"] <= 8.0
+    # takes about 2 pi T d / ln(R / a) ~ 0.006-0.01 N: within a factor of 3 of that either way.
+    assert 0.003 < report["max_force_n"] < 0.03
     forces = []
     with log.open() as f:
         for row in csv.DictReader(f):
@@ -254,7 +255,19 @@ def test_udp_rig_presses_the_cloth_through_the_server(tmp_path):
     assert min(f[1] for f in forces) < -0.003
 
 
-def udp_session_ticks(tmp_path, clock: str, rig_rate: float, seconds: float = 3.0):
+def scene_at_rate(tmp_path, rate: float) -> Path:
+    """The main job's scene with its haptic loop at `rate` Hz (its files named absolutely)."""
+    text = SCENE.read_text()
+    text = text.replace('rate = 1000.0', f'rate = {rate}')
+    text = text.replace('"../materials/', f'"{SCENE.parent.parent / "materials"}/')
+    text = text.replace('script = "', f'script = "{SCENE.parent}/')
+    assert f"rate = {rate}" in text
+    path = tmp_path / f"scene-{rate:g}hz.toml"
+    path.write_text(text)
+    return path
+
+
+def udp_session_ticks(tmp_path, clock: str, rig_rate: float, seconds: float = 3.0, scene=SCENE):
     """A real-time `--device udp --clock CLOCK` session of `seconds`, with the fake rig streaming
     still fingertips (4 cm in front of the cloth) at `rig_rate` Hz from before the preroll to
     after the session: the server's JSON summary, and the sequence numbers that the force
@@ -263,7 +276,7 @@ def udp_session_ticks(tmp_path, clock: str, rig_rate: float, seconds: float = 3.
     port = free_port()
     log = tmp_path / f"rig-{clock}.csv"
     server = subprocess.Popen(
-        [str(program("hapticloth-server")), "--scene", str(SCENE), "--device", "udp", "--udp-bind",
+        [str(program("hapticloth-server")), "--scene", str(scene), "--device", "udp", "--udp-bind",
          f"127.0.0.1:{port}", "--clock", clock, "--duration", str(seconds), "--no-realtime",
          "--json", "--no-zenoh", "--no-lcm-log"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -291,23 +304,30 @@ def udp_session_ticks(tmp_path, clock: str, rig_rate: float, seconds: float = 3.
 
 def test_the_device_clock_ticks_on_the_rigs_samples(tmp_path):
     """`--clock device` (devices/hal/device_clock): the haptic loop ticks as each of the rig's
-    samples arrives. A rig streaming at 800 Hz to a loop whose rate is 1 kHz gets one tick per
-    sample, 800 a second, each answering a sample of its own; on its own clock the loop ticks
-    1000 times a second, and a fifth of its answers repeat the sample of the tick before."""
-    seconds, rate = 3.0, 800.0
-    paced, answered = udp_session_ticks(tmp_path, "device", rate, seconds)
+    samples arrives. The loop's own rate is 500 Hz and the rig streams at 800 Hz: on its own
+    clock the loop can tick at most 500 times a second, and most of the rig's samples go
+    unanswered; on the rig's samples it ticks more often than its own clock could, each tick
+    answering a sample of its own. (How promptly is the benchmark's figure:
+    `hapticloth-bench udp --clock device` prints the round trip beside the platform timer.)"""
+    seconds, loop_rate, rig_rate = 3.0, 500.0, 800.0
+    scene = scene_at_rate(tmp_path, loop_rate)
+    own, answered_own = udp_session_ticks(tmp_path, "loop", rig_rate, seconds, scene)
+    # Its own clock: every deadline ticked or, after a late wake-up, was counted missed; never
+    # more ticks than deadlines.
+    deadlines = round(loop_rate * seconds)
+    assert own["haptic_ticks"] <= deadlines, own
+    assert own["haptic_ticks"] + own["missed_deadlines"] >= deadlines - 1, own
+    paced, answered = udp_session_ticks(tmp_path, "device", rig_rate, seconds, scene)
     ticks = paced["haptic_ticks"]
-    # A rig packet later than 1.5 ms gives one tick without a sample (the loop waits no longer):
-    # a few percent above 800 a second on a loaded machine.
-    assert 0.93 * rate * seconds <= ticks <= 1.08 * rate * seconds, paced
-    assert len(answered) >= 0.9 * ticks
-    assert len(set(answered)) >= 0.93 * len(answered)
-    own, answered = udp_session_ticks(tmp_path, "loop", rate, seconds)
-    # Its own 1 kHz, told from the rig's 800 Hz with the same margin as above (930 > 1.08 * 800):
-    # a CI run once saw 2872 ticks in 3 s (a late tick is skipped, not caught up, and this VM
-    # wakes threads late at times).
-    assert own["haptic_ticks"] >= 0.93 * 1000.0 * seconds, own
-    assert len(set(answered)) <= 0.85 * len(answered)
+    # More ticks than the loop's own clock has deadlines: only the rig's samples can have paced
+    # them (this fails only if the rig sent under 500 of its 800 packets a second).
+    assert ticks > deadlines, paced
+    # And they answered as many different samples: each tick a sample of its own, where on its
+    # own clock the loop answered at most one sample a deadline.
+    print(f"loop clock: {own['haptic_ticks']} ticks, {len(set(answered_own))} samples answered; device clock: "
+          f"{ticks} ticks, {len(set(answered))} samples answered; {deadlines} deadlines")
+    assert len(set(answered)) > deadlines, paced
+    assert len(set(answered_own)) <= deadlines + 5, own  # and the wind-down's tick or two
 
 
 def test_the_device_clock_needs_a_streaming_device():
@@ -433,10 +453,15 @@ def test_a_rig_that_falls_silent_gets_its_force_faded_over_the_ramp(tmp_path):
     assert f0 > 1e-3, f"not pressing when it fell silent: {f0} N"
     fading = [math.hypot(*p["forces"][0]) for p in packets[i0:]]
     nonzero = sum(1 for f in fading if f > 0.0)
-    assert 17 <= nonzero <= 21, f"{nonzero} stale packets with force (20 ms ramp): {fading[:25]}"
+    # Over the 20 ms ramp at 1 kHz: at most 21 ticks with force, fewer only where the platform
+    # woke the loop late and ticks were skipped (the step per tick on given times is test_gate's
+    # StaleStateFadesTheLastForceOverTheRampTime). A drop at once would be 0 or 1.
+    assert 5 <= nonzero <= 21, f"{nonzero} stale packets with force (20 ms ramp): {fading[:25]}"
     steps = [a - b for a, b in zip([f0] + fading, fading)]
-    # a step per tick of 1/20 of it: up to twice that on a tick that woke a period late
-    assert max(steps) <= f0 / 20 * 2.0 + 1e-9, (f0, fading[:25])
+    assert min(steps) >= -1e-9, f"the force grew while fading: {fading[:25]}"
+    assert fading[-1] == 0.0
+    # never a quarter of it at once: 1/20 a tick, 5 ticks' worth after a 4 ms late wake-up
+    assert max(steps) <= f0 / 4 + 1e-9, (f0, fading[:25])
 
 
 def composite_scene(tmp_path, ports, records):
