@@ -26,9 +26,11 @@ import threading
 import time
 from pathlib import Path
 
+from buildpaths import build_dir
+
 REPO = Path(__file__).resolve().parents[2]
 SCENE = REPO / "tools" / "scenes" / "hanging_square.toml"
-BUILD = Path(os.environ.get("HAPTICLOTH_BUILD_DIR", REPO / "build"))
+BUILD = build_dir()
 SERVER = BUILD / "hapticloth-server"
 LCM_URL = "udpm://239.255.76.67:7667?ttl=0"
 

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from buildpaths import build_dir
 from not_lcm_logs import NOT_LCM_LOGS, not_lcm_log
 
 lcm = pytest.importorskip("lcm")
@@ -21,9 +22,7 @@ from hapticloth import plot  # noqa: E402
 from hapticloth.lcmtypes import cloth_state_t, haptic_state_t, loop_stats_t, scene_info_t  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
-BUILD = Path(os.environ.get("HAPTICLOTH_BUILD_DIR", REPO / "build"))
-if not BUILD.is_absolute():
-    BUILD = REPO / BUILD
+BUILD = build_dir()
 
 
 def png_size(path: Path) -> tuple[int, int]:
