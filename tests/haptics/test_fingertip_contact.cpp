@@ -30,7 +30,11 @@ TEST(FingertipContact, DrumPressMatchesMembraneTheory) {
   std::printf("onset at depth %.3f mm, deepest point inside %.3f mm, %d triangles\n",
               r.onset_depth * 1e3, r.max_penetration * 1e3, r.triangles);
   std::printf("%s", r.report.to_text().c_str());
-  for (const auto& p : r.points) EXPECT_LE(std::abs(p.error()), 0.05) << p.depth;
+  // The reference is exact (shooting, membrane_reference.hpp). The graded disc's centre
+  // elements (0.25 mm) are 1/16 to 1/28 of the contact radius (4-7 mm at 1-3 mm): a linear
+  // element's error in the contact force is O((h/a)^2), under 0.4%; twice that for the coarser
+  // elements toward the rim: 1%.
+  for (const auto& p : r.points) EXPECT_LE(std::abs(p.error()), 0.01) << p.depth;
   EXPECT_LE(std::abs(r.onset_depth), 1e-4);
 }
 

@@ -1,5 +1,5 @@
 // The multirate path's response model (server/haptics/response_contact.cpp) held to the
-// physics of the direct coupling: at a 20 ms global step the drum press stays within 10% of
+// physics of the direct coupling: at a 20 ms global step the drum press stays within 4% of
 // membrane theory, a pinch carries the handkerchief's weight within 5%, and a frictionless
 // stroke is not dragged.
 #include <gtest/gtest.h>
@@ -19,7 +19,10 @@ TEST(ResponseContact, DrumPressAt20msMatchesMembraneTheory) {
   for (const auto& p : r.points) {
     std::printf("response, 20 ms: %.0f mm: %.4f N vs %.4f N (%+.2f%%)\n", p.depth * 1e3, p.force,
                 p.reference, 100 * p.error());
-    EXPECT_NEAR(p.error(), 0.0, 0.10) << p.depth;
+    // The 1 mm elements at the centre: the discretisation error goes as h^2, and the 0.25 mm disc
+    // is within 0.23% (test_fingertip_contact), so 16 x 0.23% = 3.7% here at most; the step's
+    // linearization adds the force's change over 0.02 mm of travel, negligible.
+    EXPECT_NEAR(p.error(), 0.0, 0.04) << p.depth;
   }
   std::printf("onset %.3f mm, deepest cloth point %.3f mm, %llu steps\n", r.onset_depth * 1e3,
               r.max_penetration * 1e3, static_cast<unsigned long long>(r.report.sim_steps));
