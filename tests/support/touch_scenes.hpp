@@ -323,6 +323,80 @@ inline CycleResult cycle_hanging_square(const CycleSpec& spec) {
   return run_cycles(rig, spec, surface + (r + spec.above) * out, out, sc.haptic_rate);
 }
 
+// ---- The hanging square pressed: the coarse scenes against the same scene meshed finer ----
+
+struct SquarePressSpec {
+  int quads = 22;  ///< per side of the 0.5 m square (22, 45, 89: the shipped 968, 4050, 15842 triangles)
+  /// x and z of the press on the hanging cloth (its plane is y = 0.25 at rest); the fingertip
+  /// comes from +y, horizontally
+  double x = 0.0, z = -0.25;
+  haptics::Refine refine = haptics::Refine::Off;
+  double speed = 2e-3;           ///< m/s, the device's approach (quasi-static against the swing)
+  double device_depth = 6e-3;    ///< m the device goes past geometric touch
+};
+
+struct SquarePressResult {
+  int triangles = 0;
+  std::vector<std::pair<double, double>> points;  ///< (proxy depth, force) at 1, 2, 3, 5 mm
+  double onset_depth = 0.0;  ///< m: the proxy's depth when contact began
+};
+
+/// The hanging square of the main job (0.5 m of denim, its top edge pinned) at `spec.quads`,
+/// settled 8 s under gravity, pressed slowly from the front with direct coupling: the force
+/// normal to the cloth where the proxy's depth past the cloth at rest crosses 1, 2, 3 and 5 mm.
+/// The same press on a mesh 8x finer is the discretisation reference (docs/contact.md).
+inline SquarePressResult press_hanging_square(const SquarePressSpec& spec) {
+  cloth::ClothModel model = square_cloth(denim(), {"top"}, spec.quads, 0.5);
+  cloth::IntegratorConfig ic;
+  ic.dt = 1e-3;
+  ic.gravity = Vec3(0, 0, -9.81);
+  ic.air_damping = 0.5;
+  cloth::PcgOptions pcg = touch_pcg();
+  pcg.max_iterations = 3000;  // the fine scenes' cap (tools/scenes)
+  cloth::ClothState rest = cloth::rest_state(model);
+  {
+    cloth::Integrator settle(model, ic, cloth::make_solver("pcg", pcg));
+    for (int k = 0; k < 8000; ++k) settle.step(rest);
+    for (auto& v : rest.v) v.setZero();
+  }
+  // The cloth at rest where the press comes: the plane of the vertex nearest (x, z).
+  const Vec3 target(spec.x, 0.25, spec.z);
+  int near = 0;
+  for (int i = 0; i < model.num_vertices(); ++i)
+    if ((rest.x[i] - target).norm() < (rest.x[near] - target).norm()) near = i;
+  const Vec3 surface(spec.x, rest.x[near].y(), spec.z), out = Vec3::UnitY();
+  const double r = 0.008, top = r + 0.001, bottom = r - spec.device_depth;
+  const double t_end = (top - bottom) / spec.speed;
+  devices::Trajectory tr(2);
+  tr.add(0, 0.0, surface + top * out);
+  tr.add(0, t_end, surface + bottom * out);
+  tr.add(1, 0.0, Vec3(0.2, 0.2, 0.2));  // parked away
+  haptics::SessionConfig sc = touch_session(0.0);
+  sc.coupling.refine = spec.refine;
+  TouchRig rig(std::move(model), std::move(tr), sc, ic, rest, "pcg", pcg);
+  SquarePressResult res;
+  res.triangles = rig.model.num_triangles();
+  std::vector<std::pair<double, double>> curve;  // (depth, force)
+  rig.session->run_stepped(t_end, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
+    const auto& f = h.last_report().finger[0];
+    if (!f.in_contact) return;
+    const double depth = r - (f.proxy - surface).dot(out);
+    if (curve.empty()) res.onset_depth = depth;
+    curve.emplace_back(depth, f.force.dot(out));
+  });
+  for (double target_depth : {1e-3, 2e-3, 3e-3, 5e-3}) {
+    double force = 0.0;
+    for (size_t i = 1; i < curve.size(); ++i)
+      if (curve[i - 1].first < target_depth && curve[i].first >= target_depth) {
+        const double u = (target_depth - curve[i - 1].first) / (curve[i].first - curve[i - 1].first);
+        force = curve[i - 1].second + u * (curve[i].second - curve[i - 1].second);
+        break;
+      }
+    res.points.emplace_back(target_depth, force);
+  }
+  return res;
+}
+
 // ---- A stroke across the drum: the normal force against the exact one along the path -------
 
 struct StrokeSpec {
@@ -395,12 +469,18 @@ struct PinchSpec {
   /// simulation first sees them), instead of closing over the first 50 ms.
   bool engaged_from_start = false;
   haptics::Refine refine = haptics::Refine::Auto;
+  /// Hanging: the square hangs in the xz plane and is pinched from either side (+-y) 2 cm below
+  /// the middle of its top edge, so that only friction holds it up (a cloth pinched from above
+  /// and below can drape over the lower fingertip instead).
+  bool from_the_sides = false;
 };
 
 struct PinchResult {
   double weight = 0.0;         ///< N, m g
   double carried = 0.0;        ///< N, mean upward force the fingers put on the cloth, last second
   double centre_offset = 0.0;  ///< m, cloth centre from the pinch point at the end
+  double centre_drop = 0.0;    ///< m, how far the cloth's centre went down from its start
+  bool in_contact_at_end = false;  ///< either fingertip touching the cloth on the last tick
   double max_penetration = 0.0;
   /// N: largest difference, over the steps, between the force the cloth got from the fingers
   /// (from its momentum balance: sum m dv / h - m g + air drag) and minus the rendered forces.
@@ -409,13 +489,23 @@ struct PinchResult {
   double error() const { return carried / weight - 1.0; }
 };
 
-/// A free square of denim (no pins, gravity) pinched at its centre from above and below and held
-/// still. Carried = minus the vertical sum of the rendered forces.
+/// A free square of denim (no pins, gravity) pinched at its centre from above and below (or, hanging,
+/// from the sides near its top edge) and held still. Carried = minus the vertical sum of the
+/// rendered forces.
 inline PinchResult pinch_handkerchief(const PinchSpec& spec) {
   cloth::GridSpec g;
   g.width = g.height = spec.size;
   g.nx = g.ny = spec.quads;
   g.origin = {-spec.size / 2, -spec.size / 2, 0.0};
+  // The pinch point, off the vertices (inside a triangle), and the direction the first
+  // fingertip presses from.
+  Vec3 at(0.0011, 0.0007, 0.0), from = Vec3::UnitZ();
+  if (spec.from_the_sides) {
+    g.plane = cloth::GridPlane::XZ;
+    g.origin = {-spec.size / 2, 0.0, -spec.size};
+    at = Vec3(0.0011, 0.0, -0.0207);
+    from = Vec3::UnitY();
+  }
   const cloth::Mesh mesh = cloth::make_grid(g);
   cloth::ClothModel model = cloth::build_model(mesh, denim(), {});
   const cloth::ClothState start = cloth::rest_state(model);
@@ -424,23 +514,21 @@ inline PinchResult pinch_handkerchief(const PinchSpec& spec) {
   ic.gravity = Vec3(0, 0, -9.81);
   ic.air_damping = 0.5;
   const double r = 0.008, s = spec.squeeze;
-  const Vec3 at(0.0011, 0.0007, 0.0);  // off the centre vertex: inside a triangle
   devices::Trajectory tr(2);
   const double closing = spec.engaged_from_start ? 0.0 : 0.05;
-  if (closing > 0.0) tr.add(0, 0.0, at + Vec3(0, 0, r));
-  tr.add(0, closing, at + Vec3(0, 0, r - s));
-  tr.add(0, spec.hold, at + Vec3(0, 0, r - s));
-  if (closing > 0.0) tr.add(1, 0.0, at - Vec3(0, 0, r));
-  tr.add(1, closing, at - Vec3(0, 0, r - s));
-  tr.add(1, spec.hold, at - Vec3(0, 0, r - s));
+  if (closing > 0.0) tr.add(0, 0.0, at + r * from);
+  tr.add(0, closing, at + (r - s) * from);
+  tr.add(0, spec.hold, at + (r - s) * from);
+  if (closing > 0.0) tr.add(1, 0.0, at - r * from);
+  tr.add(1, closing, at - (r - s) * from);
+  tr.add(1, spec.hold, at - (r - s) * from);
   haptics::SessionConfig sc = touch_session(spec.friction);
   sc.coupling.refine = spec.refine;
   set_global_step(sc, ic, spec.global_dt, spec.model);
   TouchRig rig(std::move(model), std::move(tr), sc, ic, start, spec.solver);
-  int centre = 0;
+  int centre = 0;  // the vertex nearest the pinch point
   for (int i = 0; i < rig.model.num_vertices(); ++i)
-    if (rig.model.rest_positions[i].head<2>().norm() < rig.model.rest_positions[centre].head<2>().norm())
-      centre = i;
+    if ((start.x[i] - at).norm() < (start.x[centre] - at).norm()) centre = i;
   PinchResult res;
   res.weight = rig.model.total_mass * 9.81;
   double sum = 0.0;
@@ -475,6 +563,9 @@ inline PinchResult pinch_handkerchief(const PinchSpec& spec) {
   });
   res.carried = n ? sum / n : 0.0;
   res.centre_offset = (rig.session->sim().state().x[centre] - at).norm();
+  res.centre_drop = start.x[centre].z() - rig.session->sim().state().x[centre].z();
+  const auto& last = rig.session->haptics().last_report();
+  res.in_contact_at_end = last.finger[0].in_contact || last.finger[1].in_contact;
   res.report = rig.session->report();
   res.max_penetration = res.report.max_penetration;
   return res;

@@ -2,6 +2,8 @@
 // (`hapticloth-bench accuracy`, `hapticloth-bench stability`). Both print one JSON object.
 #pragma once
 
+#include <vector>
+
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -54,6 +56,9 @@ nlohmann::json limit(const LimitOptions& opt);
 struct FidelityOptions {
   bool quick = false;
   bool verbose = true;
+  /// Instead: the hanging square pressed at these resolutions (quads a side), the last of them
+  /// the reference (docs/contact.md, "The hanging square against a finer mesh").
+  std::vector<int> square_press;
 };
 
 /// The touch against physics: the drum press against membrane theory per mesh, and the pinched

@@ -7,7 +7,9 @@
 //     any cloth point got into a fingertip, and Newton's third law from the cloth's momentum;
 //     across meshes, squeezes, friction and both solvers, and on both sides of 2 mu N = m g;
 //   multirate: the drum (1 mm mesh) and the handkerchief (20 quads) with the global step at
-//     10, 20 and 40 ms, through each local model (response, patch).
+//     10, 20 and 40 ms, through each local model (response, patch);
+//   --square-press: instead, the hanging square of the main job pressed at its middle and near
+//     its pinned edge, per mesh with refinement off and on, against the finest mesh given.
 #include <chrono>
 #include <iostream>
 
@@ -78,8 +80,50 @@ json pinch_row(const test::PinchSpec& spec, bool verbose) {
 
 }  // namespace
 
+// The hanging square pressed from the front at its middle and 3 cm below its pinned edge, on
+// each mesh with refinement off and on, and on the last (finest) mesh without: each force at 1,
+// 2, 3 and 5 mm of proxy depth against the finest mesh's (a discretisation reference: the same
+// scene, the same press, only finer).
+json square_press(const std::vector<int>& quads, bool verbose) {
+  json rows = json::array();
+  struct Where { const char* name; double z; };
+  for (const Where w : {Where{"middle", -0.25}, Where{"3 cm below the pins", -0.03}}) {
+    test::SquarePressSpec ref_spec;
+    ref_spec.quads = quads.back();
+    ref_spec.z = w.z;
+    const auto t0 = std::chrono::steady_clock::now();
+    const test::SquarePressResult ref = test::press_hanging_square(ref_spec);
+    auto row = [&](const test::SquarePressSpec& spec, const test::SquarePressResult& r, double seconds) {
+      json j = {{"at", w.name}, {"quads", spec.quads}, {"triangles", r.triangles},
+                {"refine", spec.refine == haptics::Refine::On ? "on" : "off"},
+                {"onset_mm", r.onset_depth * 1e3}, {"seconds", seconds}};
+      for (size_t i = 0; i < r.points.size(); ++i) {
+        const double f = r.points[i].second, f_ref = ref.points[i].second;
+        j["points"].push_back({{"depth_mm", r.points[i].first * 1e3}, {"force_n", f},
+                               {"reference_n", f_ref}, {"error", f_ref > 0.0 ? f / f_ref - 1.0 : 0.0}});
+      }
+      if (verbose) std::cerr << j.dump() << "\n";
+      return j;
+    };
+    rows.push_back(row(ref_spec, ref, seconds_since(t0)));
+    for (size_t m = 0; m + 1 < quads.size(); ++m)
+      for (auto refine : {haptics::Refine::Off, haptics::Refine::On}) {
+        test::SquarePressSpec spec = ref_spec;
+        spec.quads = quads[m];
+        spec.refine = refine;
+        const auto t1 = std::chrono::steady_clock::now();
+        rows.push_back(row(spec, test::press_hanging_square(spec), seconds_since(t1)));
+      }
+  }
+  return rows;
+}
+
 json fidelity(const FidelityOptions& opt) {
   json out;
+  if (!opt.square_press.empty()) {
+    out["square_press"] = square_press(opt.square_press, opt.verbose);
+    return out;
+  }
   const std::vector<double> edges =
       opt.quick ? std::vector<double>{1e-3, 8e-3}
                 : std::vector<double>{0.25e-3, 0.5e-3, 1e-3, 2e-3, 4e-3, 8e-3};

@@ -11,7 +11,7 @@
 //   hapticloth-bench accuracy [--quick] --json [--plot OUT.png]
 //   hapticloth-bench stability [--quick] [--random-steps N] --json [--plot OUT.png]
 //   hapticloth-bench limit [--quick] --json
-//   hapticloth-bench fidelity [--quick] --json
+//   hapticloth-bench fidelity [--quick] [--square-press 22,45,178] --json
 //   hapticloth-bench late-ticks [--seed N] --json
 #include <algorithm>
 #include <cmath>
@@ -233,6 +233,12 @@ int main(int argc, char** argv) {
                   "handkerchief vs its weight (BENCHMARKS.md, Force fidelity)");
   fid->add_flag("--quick", quick, "two meshes and one pinch");
   fid->add_flag("--json", json, "one JSON object on one line");
+  std::vector<int> square_quads;
+  fid->add_option("--square-press", square_quads,
+                  "instead: the hanging square pressed on these meshes (quads a side, the last the "
+                  "reference), e.g. 22,45,178")
+      ->delimiter(',')
+      ->check(CLI::Range(4, 400));
   auto* late = cli.add_subcommand(
       "late-ticks", "press, stroke and pinch with ticks 1-20 ms late: energy given beyond "
                     "passivity and force jumps, against the same run on time");
@@ -261,7 +267,7 @@ int main(int argc, char** argv) {
       {stab, [&] { return bench::stability({.quick = quick, .source_dir = source_dir, .random_steps = random_steps}); },
        true},
       {lim, [&] { return bench::limit({.quick = quick, .source_dir = source_dir}); }, false},
-      {fid, [&] { return bench::fidelity({.quick = quick}); }, false},
+      {fid, [&] { return bench::fidelity({.quick = quick, .square_press = square_quads}); }, false},
       {late, [&] { return bench::late_ticks({.source_dir = source_dir, .seed = late_seed}); }, false},
   };
 
