@@ -652,10 +652,6 @@ void FingertipContact::end_step(const cloth::ClothState& s) {
     // c F beyond the proxy (along -n in a frictionless press). Reported there, the coupling's
     // spring k (proxy - target) is F, as the passivity controller's energy balance needs.
     r.proxy = P.x - refined_c_[f] * r.force;
-    if (std::getenv("DBGC") && !short_steps_ && f == 0) {
-      int slip = 0; for (auto& q : F.now) slip += !q.sliding;
-      std::fprintf(stderr, "STEP P.x %.5f %.5f disp %.5f tgt %.5f pts %d slip %d F %.4f %.4f %.4f n %.3f %.3f %.3f\n", P.x.x(), P.x.z(), P.displacement.x(), P.target.x(), r.points, slip, r.force.x(), r.force.y(), r.force.z(), r.normal.x(), r.normal.y(), r.normal.z());
-    }
     r.penetration = exact_penetration(f, s.x, P.x);
     max_pen_ = std::max(max_pen_, r.penetration);
     samples_in_contact_ += r.points;

@@ -37,10 +37,9 @@ struct RefinementParams {
 
 /// Whether to refine where the global mesh does not resolve the contact patch. Auto: on the
 /// multirate path's response model (its energy bound keeps the rendering passive whatever the
-/// compliance does: haptics/energy_bound.hpp), and off with direct coupling: the child is a membrane
-/// (eqs. 3-5, no bending), and where the cloth is nearly slack (a hanging cloth, across) it is
-/// far softer than the fabric, which moved the main job's pinch onset 3.4 mm through the cloth
-/// in 7 ms and woke the passivity controller (docs/contact.md).
+/// compliance does: haptics/energy_bound.hpp), and off with direct coupling: on the nearly slack
+/// hanging cloth a child's compliance is large and changes as the contact moves from child to
+/// child, which gives energy that the passivity controller must take back (docs/contact.md).
 enum class Refine { Auto, On, Off };
 inline const char* to_string(Refine r) { return r == Refine::Auto ? "auto" : r == Refine::On ? "on" : "off"; }
 /// `multirate`: the response model renders between global steps (else direct coupling).

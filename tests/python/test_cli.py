@@ -179,7 +179,7 @@ def test_no_server_on_the_lcm_bus(name, tmp_path, commands_log, trajectory_csv):
     t0 = time.monotonic()
     r = tool(name, first, "--transport", "lcm", "--lcm-url", "memq://", "--timeout", "0.5")
     assert_user_error(r, "--lcm-url memq://: no answer from server 'default' within 0.5 s")
-    assert time.monotonic() - t0 < 30
+    assert time.monotonic() - t0 < 30  # a safety limit: a 0.5 s timeout must not hang
 
 
 def test_bad_lcm_url(trajectory_csv):
@@ -286,7 +286,7 @@ def test_inject_unanswered_commands_exit_1(silent_server, trajectory_csv):
     assert "Traceback" not in r.stdout + r.stderr
     assert r.stdout.count("unanswered: ") == 2 and "no answer within 0.5 s" in r.stdout
     assert "accepted:" not in r.stdout
-    assert time.monotonic() - t0 < 30
+    assert time.monotonic() - t0 < 30  # a safety limit: a 0.5 s timeout must not hang
 
 
 def test_replay_unanswered_commands_exit_1(silent_server, commands_log):

@@ -34,6 +34,7 @@ def refused(server: Server, what: str) -> None:
     took = time.monotonic() - t0
     assert rc == 2, f"exit {rc}:\n{server.stdout}\n{server.stderr}"
     assert f"{what}: another running session is writing it" in server.stderr, server.stderr
+    # A safety limit (the claim comes before a preroll of seconds; the missing stage line below says so)
     assert took < 5.0, f"refused only after {took:.1f} s (after its preroll)"
     assert "stage" not in server.stdout
 

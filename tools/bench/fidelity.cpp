@@ -112,7 +112,8 @@ json square_press(const std::vector<int>& quads, bool verbose) {
         spec.quads = quads[m];
         spec.refine = refine;
         const auto t1 = std::chrono::steady_clock::now();
-        rows.push_back(row(spec, test::press_hanging_square(spec), seconds_since(t1)));
+        const test::SquarePressResult r = test::press_hanging_square(spec);
+        rows.push_back(row(spec, r, seconds_since(t1)));
       }
   }
   return rows;
