@@ -2,7 +2,6 @@
 
 #include <stdexcept>
 
-
 namespace hapticloth::devices {
 
 DeviceClock::DeviceClock(double period, const WakeClock& clock) : period_(period), clock_(&clock) {

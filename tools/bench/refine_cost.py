@@ -18,15 +18,10 @@ import pathlib
 import subprocess
 import sys
 
+from machine import cpu_model
+
 TOP = pathlib.Path(__file__).resolve().parents[2]
 SCENES = ["hanging_square.toml", "hanging_square_4k_haptic.toml", "hanging_square_16k_haptic.toml"]
-
-
-def cpu_model():
-    for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
-        if line.startswith("model name"):
-            return line.split(":", 1)[1].strip()
-    return "unknown"
 
 
 def bench(exe, *args):

@@ -16,16 +16,11 @@ import statistics
 import subprocess
 import sys
 
+from machine import cpu_model
+
 TOP = pathlib.Path(__file__).resolve().parents[2]
 SCENES = [("hanging_square.toml", 1000), ("hanging_square_4k.toml", 1000), ("hanging_square_16k.toml", 400)]
 LEVELS = ["baseline", "avx2", "avx512"]
-
-
-def cpu_model():
-    for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
-        if line.startswith("model name"):
-            return line.split(":", 1)[1].strip()
-    return "unknown"
 
 
 def run(bench, scene, steps, level):

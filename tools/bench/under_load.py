@@ -10,10 +10,11 @@ Example: tools/bench/under_load.py --runs 20 -- build/tests/test_device_clock
 import argparse
 import json
 import multiprocessing
-import pathlib
 import subprocess
 import sys
 import time
+
+from machine import cpu_model
 
 
 def spin():
@@ -21,13 +22,6 @@ def spin():
     x = 0
     while True:
         x += 1
-
-
-def cpu_model():
-    for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
-        if line.startswith("model name"):
-            return line.split(":", 1)[1].strip()
-    return "unknown"
 
 
 def main():
