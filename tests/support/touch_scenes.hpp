@@ -156,6 +156,17 @@ inline MembraneDisc membrane_disc(const DrumSpec& spec) {
   return m;
 }
 
+/// The force where a press's (depth, force) curve, in the order sampled, first crosses `depth`,
+/// interpolated linearly between the two samples around it; 0 if it never does.
+inline double force_at_depth(const std::vector<std::pair<double, double>>& curve, double depth) {
+  for (size_t i = 1; i < curve.size(); ++i)
+    if (curve[i - 1].first < depth && curve[i].first >= depth) {
+      const double u = (depth - curve[i - 1].first) / (curve[i].first - curve[i - 1].first);
+      return curve[i - 1].second + u * (curve[i].second - curve[i - 1].second);
+    }
+  return 0.0;
+}
+
 inline DrumResult press_drum(const DrumSpec& spec) {
   const MembraneDrum& d = spec.drum;
   MembraneDisc disc = membrane_disc(spec);
@@ -206,12 +217,7 @@ inline DrumResult press_drum(const DrumSpec& spec) {
   for (double target : {1e-3, 2e-3, 3e-3}) {
     DrumPoint p;
     p.depth = target;
-    for (size_t i = 1; i < curve.size(); ++i)
-      if (curve[i - 1].first < target && curve[i].first >= target) {
-        const double u = (target - curve[i - 1].first) / (curve[i].first - curve[i - 1].first);
-        p.force = curve[i - 1].second + u * (curve[i].second - curve[i - 1].second);
-        break;
-      }
+    p.force = force_at_depth(curve, target);
     p.reference = spec.offset > 0.0 ? off_centre_force(d, target, spec.offset) : sphere_indentation(d, target).force;
     res.points.push_back(p);
   }
@@ -384,16 +390,7 @@ inline SquarePressResult press_hanging_square(const SquarePressSpec& spec) {
     if (curve.empty()) res.onset_depth = depth;
     curve.emplace_back(depth, f.force.dot(out));
   });
-  for (double target_depth : {1e-3, 2e-3, 3e-3, 5e-3}) {
-    double force = 0.0;
-    for (size_t i = 1; i < curve.size(); ++i)
-      if (curve[i - 1].first < target_depth && curve[i].first >= target_depth) {
-        const double u = (target_depth - curve[i - 1].first) / (curve[i].first - curve[i - 1].first);
-        force = curve[i - 1].second + u * (curve[i].second - curve[i - 1].second);
-        break;
-      }
-    res.points.emplace_back(target_depth, force);
-  }
+  for (double depth : {1e-3, 2e-3, 3e-3, 5e-3}) res.points.emplace_back(depth, force_at_depth(curve, depth));
   return res;
 }
 
