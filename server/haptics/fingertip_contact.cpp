@@ -23,25 +23,26 @@ constexpr double kPullDepth = 1e-6;  // m
 constexpr double kAddDepth = 5e-6;   // m
 // Re-solves of a step that may release contacts (see revise()).
 constexpr int kFreeRevisions = 12;
-// Released contacts and friction corrections ask for a re-solve once their forces add up to this
-// share of the finger's normal force; smaller ones take effect from the next step. 1% is the
-// bound the stroke's Coulomb friction is held to, and a tenth of the force a person can tell
-// apart (7-10%). At 0.2%, half the steps of a held pinch were solved twice: contacts at the
-// rim of the pinch, where the normal force goes to zero, switching between sticking and
-// sliding as the hanging cloth sways (BENCHMARKS.md, "Force fidelity").
-constexpr double kResolveShare = 1e-2;
-// ... and never for less than this force in all: Weber's law fails near zero, where what a
-// fingertip tells apart is the smallest force it detects at all, 29-44 mN (King, Donlin and
-// Hannaford, "Perceptual thresholds for single vs. multi-finger haptic interaction", 2010). A
-// thirtieth of that keeps a finger under 0.1 N (a light touch, a cloth sliding out of opening
-// fingers) from being solved again for friction changes of tenths of a millinewton, and never
-// binds where 1% of the normal force is more (the stroke's Coulomb check is unchanged).
-constexpr double kResolveFloor = 1e-3;  // N
 // m/s: how fast a change of the refined compliance may move the fingertip through the refined
 // cloth (approach_refined_compliance): 10 mm/s, a slow press's speed, so that a 7 mm change
 // takes 0.7 s and a tick's jump is 10 um (k dp^2 / 2 = 0.04 uJ at 800 N/m).
 constexpr double kRefinedDepthRate = 0.01;
 }  // namespace
+
+// kResolveShare: released contacts and friction corrections ask for a re-solve once their
+// forces add up to this share of the finger's normal force; smaller ones take effect from the
+// next step. 1% of the normal force is a tenth of the force a person can tell apart (7-10%).
+// At 0.2%, half the steps of a held pinch were solved twice: contacts at the rim of the pinch,
+// where the normal force goes to zero, switching between sticking and sliding as the hanging
+// cloth sways.
+// kResolveFloor: never for less than this force in all: Weber's law fails near zero, where what
+// a fingertip tells apart is the smallest force it detects at all, 29-44 mN (King, Donlin and
+// Hannaford, "Perceptual thresholds for single vs. multi-finger haptic interaction", 2010). A
+// thirtieth of that keeps a finger under 0.1 N (a light touch, a cloth sliding out of opening
+// fingers) from being solved again for friction changes of tenths of a millinewton.
+double FingertipContact::coulomb_bound(double normal_force, double mu) {
+  return std::max(kResolveShare * normal_force, kResolveFloor) + kConeTolerance * mu * normal_force;
+}
 
 FingertipContact::FingertipContact(const cloth::ClothModel& model,
                                    const std::vector<std::array<int, 3>>& tris, int fingers,
@@ -52,8 +53,8 @@ FingertipContact::FingertipContact(const cloth::ClothModel& model,
       p_(p),
       integ_(integ),
       bp_(model.rest_positions, tris),
-      // Direct coupling's short steps (cloth::ContactSteps) defer their late friction corrections
-      // to the next step (revise()), their pressure law stiffens with depth (linearize_pressure),
+      // Direct coupling's short steps (cloth::ContactSteps) defer their late slide-to-stick
+      // switches to the next step (revise()), their pressure law stiffens with depth (linearize_pressure),
       // their contacts are one-sided for the integrator's line search (make_spring) and come back
       // from a release with their state (add_contacts).
       short_steps_(integ.config().contact_steps == cloth::ContactSteps::Short) {
@@ -281,7 +282,7 @@ void FingertipContact::decide_friction(int f, Sample& q) const {
   const double lim = p_.friction * std::max(q.f0, 0.0);
   const double ftn = ft.norm();
   q.sliding = ftn > lim;
-  q.slide = q.sliding && ftn > 0.0 ? Vec3(ft * (lim / ftn)) : Vec3::Zero();
+  q.slide = q.sliding ? Vec3(ft * (lim / ftn)) : Vec3::Zero();
 }
 
 // The normal force of a contact's linearized spring at the end of the step (rel_step: the
@@ -293,14 +294,14 @@ double FingertipContact::normal_at_end(const Sample& q, const Vec3& rel_step) co
 // Coulomb at the end of the solved step (rel_step: the point's motion relative to the proxy):
 // a sticking contact whose spring would leave the friction cone slides instead, and a sliding
 // one takes mu x its end normal force. Returns how much its force changed, N: the change that
-// asks for a re-solve. With `defer`, a sliding contact keeps sliding and its new magnitude
-// waits for the next solve (returns 0 for it), so only stick-to-slide asks: that direction
-// alone cannot cycle.
+// asks for a re-solve. With `defer`, a sliding contact keeps sliding (only stick-to-slide
+// switches, and that direction alone cannot cycle); its magnitude still follows its normal
+// force, a fixed point the re-solves converge to.
 double FingertipContact::revise_friction(Sample& q, const Vec3& p0, const Vec3& rel_step,
                                           bool defer) const {
   const double k = p_.pressure_stiffness * q.w;
   const double lim = p_.friction * std::max(normal_at_end(q, rel_step), 0.0);
-  const double tol = 5e-3 * lim + 1e-9;
+  const double tol = kConeTolerance * lim + 1e-9;
   if (!q.sliding) {
     const Mat3 Pt = Mat3::Identity() - q.nt * q.nt.transpose();
     const Vec3 ft = -k * (Pt * (q.x0 - p0 + rel_step - q.anchor));
@@ -324,8 +325,22 @@ double FingertipContact::revise_friction(Sample& q, const Vec3& p0, const Vec3& 
   }
   const double sn = q.slide.norm();
   if (std::abs(sn - lim) <= tol) return 0.0;
-  q.slide = sn > 0.0 ? Vec3(q.slide * (lim / sn)) : Vec3::Zero();
-  return defer ? 0.0 : std::abs(sn - lim);
+  if (sn > 0.0) {
+    q.slide *= lim / sn;
+  } else if (short_steps_) {
+    // A slide scaled to nothing while its normal force was (a contact whose end state pulled
+    // at an earlier re-solve) has no direction left: kinetic friction opposes the point's slip
+    // over the sphere. Kept at zero, the contact would slide frictionless for the rest of the
+    // step however hard it pressed again, and the stroke's friction would fall 5% short of
+    // Coulomb's on such ticks. The multirate path's long steps keep it at zero: the global step
+    // is only what the local model follows there, and its response model, following the
+    // steps this rule gives, predicts the finger leaving the cloth mid-stroke (the 25 Hz
+    // stroke's force falling to a quarter within a global step).
+    const double sl = slip.norm();
+    if (sl <= 0.0) return 0.0;
+    q.slide = slip * (-lim / sl);
+  }
+  return std::abs(sn - lim);
 }
 
 void FingertipContact::rebuild_springs() {
@@ -517,10 +532,11 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
   // inside. Twelve free revisions leave the multirate path's 20 ms pinch and 25 Hz stroke as
   // they were (fewer, or freezing friction too, let the cloth end 0.4-1.2 mm inside a
   // fingertip in the pinch and the stroke's friction chatter).
-  // A short step (direct coupling) also defers its late friction corrections: a contact that
-  // slides stays sliding, and magnitude changes wait for the next step, 1 ms later. Otherwise
-  // contacts at the cone's edge flip between stick and slide until the revision cap, and the
-  // step ends before the samples that the last solve pushed inside are added. A long global
+  // A short step (direct coupling) also defers its late slide-to-stick switches: after the free
+  // revisions a contact that slides stays sliding to the next step, 1 ms later (its magnitude
+  // still follows its normal force). Otherwise contacts at the cone's edge flip between stick
+  // and slide until the revision cap, and the step ends before the samples that the last solve
+  // pushed inside are added. A long global
   // step of the multirate path holds its friction state for the whole step and keeps revising
   // it (deferring there let the 20 ms pinch carry 10% less than the weight). The integrator's
   // line search keeps whole re-solves from overshooting (Integrator::revise_contacts; a step

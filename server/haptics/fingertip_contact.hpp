@@ -52,6 +52,16 @@ struct FingerTarget {
 
 class FingertipContact final : public cloth::StepContacts {
  public:
+  /// When a step ends (revise()): released contacts and friction corrections that add up to
+  /// less than max(kResolveShare x the finger's normal force, kResolveFloor) wait for the next
+  /// step, and a contact within kConeTolerance of its friction limit counts as on it. So on any
+  /// tick a sliding fingertip's friction is within that sum plus kConeTolerance mu f_n of
+  /// Coulomb's mu f_n.
+  static constexpr double kResolveShare = 1e-2;
+  static constexpr double kResolveFloor = 1e-3;  // N
+  static constexpr double kConeTolerance = 5e-3;
+  static double coulomb_bound(double normal_force, double mu);
+
   /// `integ` must have config().proxies >= fingers; its proxies start at `park` (m).
   FingertipContact(const cloth::ClothModel& model, const std::vector<std::array<int, 3>>& tris,
                    int fingers, const ContactParams& p, cloth::Integrator& integ);

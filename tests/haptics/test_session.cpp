@@ -40,40 +40,40 @@ Rig drum_stroke(double depth) {
 }
 
 // Stroke: pressed 3 mm, then sliding. While the contact slides (every contact point slipping),
-// each contact's friction is mu x its normal force (Coulomb per contact: the sums of their
-// magnitudes agree within 1%), and the drag the finger feels opposes the motion.
+// its friction is Coulomb's mu x its normal force (the sums of the contacts' magnitudes) on
+// every tick, within what the step's end rule leaves: corrections under
+// FingertipContact::coulomb_bound (1% of the normal force, 2.5% of the friction at mu 0.4, plus
+// the cone's 0.5% tolerance) wait a step; they come where contacts are added or released. On
+// average the friction is within 1%. The drag the finger feels opposes the motion.
 TEST(Haptics, StrokeFeelsCoulombFriction) {
+  constexpr double mu = 0.4;
   Rig rig = drum_stroke(0.003);
-  int slipping = 0, checked = 0;
-  double worst = 0.0, mean = 0.0, ratio_min = 1e9, ratio_max = 0.0, over_cone = -1.0;
-  std::vector<double> errs;
+  int slipping = 0, checked = 0, beyond_bound = 0;
+  double worst = 0.0, worst_bound = 0.0, mean = 0.0, over = 0.0, under = 0.0;
   rig.session->run_stepped(1.8, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker& w) {
     const auto& f = h.last_report().finger[0];
     if (h.last_report().time < 1.0 || !f.in_contact || !f.slipping) return;
     ++slipping;
     const haptics::ProxyResult& p = w.last_snapshot().proxy[0];
-    const double signed_err = (p.friction_force - 0.4 * p.normal_force) / (0.4 * p.normal_force);
-    const double err = std::abs(signed_err);
-    over_cone = std::max(over_cone, signed_err);
-    worst = std::max(worst, err);
-    mean += err;
-    errs.push_back(err);
-    const double fn = f.force.dot(f.normal);
-    const Vec3 ft = f.force - fn * f.normal;
-    ratio_min = std::min(ratio_min, ft.norm() / fn);
-    ratio_max = std::max(ratio_max, ft.norm() / fn);
+    const double off = p.friction_force - mu * p.normal_force;  // N
+    const double bound = haptics::FingertipContact::coulomb_bound(p.normal_force, mu);
+    beyond_bound += std::abs(off) > bound;
+    const double rel = off / (mu * p.normal_force);
+    over = std::max(over, rel);
+    under = std::min(under, rel);
+    worst = std::max(worst, std::abs(rel));
+    worst_bound = std::max(worst_bound, bound / (mu * p.normal_force));
+    mean += std::abs(rel);
     if (f.force.x() < 0.0) ++checked;  // the drag (friction and ploughing) opposes the +x motion
   });
   mean /= std::max(slipping, 1);
-  std::sort(errs.begin(), errs.end());
-  const double p99 = errs.empty() ? 1.0 : errs[static_cast<size_t>(0.99 * (errs.size() - 1))];
-  std::printf("per-contact Coulomb error mean %.2e, p99 %.2e, worst %.2e; resultant |Ft|/Fn in "
-              "[%.3f, %.3f] (mu 0.4); most over the cone %+.2e\n", mean, p99, worst, ratio_min, ratio_max, over_cone);
+  std::printf("%d sliding ticks: friction off mu x normal force by %.2f%% on average, %+.2f%% to "
+              "%+.2f%% (the end rule's bound %.2f%%)\n", slipping, 100 * mean, 100 * under, 100 * over,
+              100 * worst_bound);
   EXPECT_GT(slipping, 500);
+  EXPECT_EQ(beyond_bound, 0);
+  EXPECT_LE(worst, 0.031);  // the bound at this stroke's normal force, 0.18 N: 1% / mu + 0.5%
   EXPECT_LE(mean, 0.01);
-  // Friction corrections under 1% of the normal force wait a step, and a contact may switch
-  // between sticking and sliding within the step's re-solves: a few ticks stay off.
-  EXPECT_LE(p99, 0.03);
   EXPECT_GE(checked, 0.95 * slipping);
 }
 
@@ -265,14 +265,15 @@ TEST(Haptics, MultirateKeepsForceContinuousAt25Hz) {
     Jumps j;
     double fsum = 0.0, prev = -1.0;
     int n = 0;
-    rig.session->run_stepped(2.8, 0.04, [&](const haptics::HapticLoop& h, const haptics::SimWorker&) {
+    rig.session->run_stepped(2.8, 0.04, [&](const haptics::HapticLoop& h, const haptics::SimWorker& w) {
+      { const auto& p = w.last_snapshot().proxy[0]; const double tt = h.last_report().time; if (multirate && (int)model == 0 && tt > 1.1 && tt < 1.7 && std::lround(tt*1000) % 40 == 0) std::printf("SNAP t %.3f pts %d fn %.4f ft %.4f pen %.5f\n", tt, p.points, p.normal_force, p.friction_force, p.penetration); }
       const auto& f = h.last_report().finger[0];
       const double t = h.last_report().time;
       const double F = f.in_contact ? f.force.norm() : 0.0;
       const long k = std::lround(t * 1000);
       if (t > 1.0 && prev > 0.0 && F > 0.0) {
         const double jump = std::abs(F - prev) / F;
-        j.any = std::max(j.any, jump);
+        j.any = std::max(j.any, jump); if (jump > 0.1 && multirate) std::printf("DBG t %.3f F %.4f prev %.4f model %d pts %d\n", t, F, prev, (int)model, f.in_contact);
         if (k % 40 == 0) {  // the tick a global update lands
           j.update = std::max(j.update, jump);
           fsum += F;
