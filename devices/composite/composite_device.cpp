@@ -108,6 +108,11 @@ Status CompositeDevice::read(double now, DeviceState& state) noexcept {
     state_.device_time = std::max(state_.device_time, p.state.device_time);
     state_.received_time = std::max(state_.received_time, p.state.received_time);
   }
+  // A part not heard from yet reads as the device origin (which may be inside the cloth), and
+  // one silent past its watchdog as wherever it was: neither finger is there.
+  state_.absent = 0;
+  for (std::size_t i = 0; i < parts_.size(); ++i)
+    if (!parts_[i].gate.fresh(now, parts_[i].state.received_time)) state_.absent |= 1u << i;
   sum_counters();
   if (!any) return Status::NoData;
   ++state_.sequence;

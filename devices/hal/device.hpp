@@ -63,6 +63,10 @@ struct DeviceState {
   double received_time = -1.0; ///< s, loop clock when this sample arrived; < 0: never
   std::uint64_t sequence = 0;  ///< increases with every new sample
   std::array<FingerState, kMaxFingers> finger{};
+  /// Bit f set: finger f has no fresh sample of its own though the device has (a composite
+  /// device's part not heard from yet, or silent past its own watchdog). Its position means
+  /// nothing; the loop treats the finger as absent.
+  std::uint32_t absent = 0;
 };
 
 struct DeviceCommand {

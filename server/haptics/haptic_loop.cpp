@@ -47,13 +47,13 @@ bool HapticLoop::wind_down(double now) noexcept {
 
 void HapticLoop::prime(double now) noexcept {
   if (dev_.read(now, state_) == devices::Status::Error) ++device_errors_;
-  const bool present = gate_.fresh(now, state_.received_time);
+  const Presence present = presence(now);
   report_.time = now;
   report_.tick = 0;
   for (int f = 0; f < fingers_; ++f) {
     FingerReport& r = report_.finger[f];
     absent(r, map_.origin + map_.R * state_.finger[f].position, map_.R * state_.finger[f].velocity);
-    r.present = present;
+    r.present = present[f];
   }
   out_.back() = report_;
   out_.publish();
@@ -99,10 +99,7 @@ void HapticLoop::tick(double now) noexcept {
   count_skipped_narrow_phase(s);
   report_.time = now;
   report_.tick = tick_;
-  // A finger is there only while the device has a fresh sample of it: before its first
-  // sample the device's position means nothing (a UDP rig not yet connected reads as the
-  // device origin, which may be inside the cloth), and after a watchdog trip it is unknown.
-  const bool present = gate_.fresh(now, state_.received_time);
+  const Presence present = presence(now);
   std::array<Fingertip, kMaxFingers> tips{};
   std::array<Vec3, kMaxFingers> measured{};
   read_fingertips(tick_dt, present, tips, measured);
@@ -118,6 +115,17 @@ void HapticLoop::tick(double now) noexcept {
   last_now_ = now;
 }
 
+// A finger is there only while the device has a fresh sample of it: before its first sample
+// the device's position means nothing (a UDP rig not yet connected reads as the device origin,
+// which may be inside the cloth), and after a watchdog trip it is unknown. A composite device
+// says so per finger (DeviceState::absent).
+HapticLoop::Presence HapticLoop::presence(double now) const noexcept {
+  const bool fresh = gate_.fresh(now, state_.received_time);
+  Presence p{};
+  for (int f = 0; f < fingers_; ++f) p[f] = fresh && !((state_.absent >> f) & 1u);
+  return p;
+}
+
 void HapticLoop::count_skipped_narrow_phase(const ClothSnapshot& s) noexcept {
   bool any_near = false;
   for (int f = 0; f < fingers_; ++f) any_near = any_near || (s.time >= 0.0 && s.near[f]);
@@ -126,12 +134,12 @@ void HapticLoop::count_skipped_narrow_phase(const ClothSnapshot& s) noexcept {
 
 // The device's fingertips in the scene frame (`measured`), and as the contact takes them
 // (`tips`): a late tick's motion reaches the contact over the ticks it missed (late_tick.hpp).
-void HapticLoop::read_fingertips(double tick_dt, bool present, std::array<Fingertip, kMaxFingers>& tips,
+void HapticLoop::read_fingertips(double tick_dt, const Presence& present, std::array<Fingertip, kMaxFingers>& tips,
                                  std::array<Vec3, kMaxFingers>& measured) noexcept {
   if (catch_up_.late(tick_dt)) ++late_ticks_;
   for (int f = 0; f < fingers_; ++f) {
     measured[f] = map_.origin + map_.R * state_.finger[f].position;
-    const bool catch_up = present && guard_;
+    const bool catch_up = present[f] && guard_;
     tips[f] = Fingertip{f, catch_up ? catch_up_.seen(f, measured[f], tick_dt) : measured[f],
                         map_.R * state_.finger[f].velocity};
   }
@@ -139,17 +147,15 @@ void HapticLoop::read_fingertips(double tick_dt, bool present, std::array<Finger
 
 // Each finger's contact with the cloth (the mode's haptic half), or its absence; the energy
 // bound takes the interval that ended first (it needs the force held over it).
-void HapticLoop::touch(const ClothSnapshot& s, double now, double tick_dt, bool present,
+void HapticLoop::touch(const ClothSnapshot& s, double now, double tick_dt, const Presence& present,
                        const std::array<Fingertip, kMaxFingers>& tips,
                        const std::array<Vec3, kMaxFingers>& measured) noexcept {
-  std::array<bool, kMaxFingers> here{};
-  for (int f = 0; f < fingers_; ++f) here[f] = present;
-  contact_->prepare(s, tips, here, fingers_);
-  if (bound_) bound_->account(measured, sent_, here, fingers_);
+  contact_->prepare(s, tips, present, fingers_);
+  if (bound_) bound_->account(measured, sent_, present, fingers_);
   bool contact = false;
   for (int f = 0; f < fingers_; ++f) {
     FingerReport& r = report_.finger[f];
-    if (present) {
+    if (present[f]) {
       contact_->touch(s, now, tick_dt, tips[f], r);
     } else {
       if (r.present) contact_->release(f);
@@ -157,7 +163,7 @@ void HapticLoop::touch(const ClothSnapshot& s, double now, double tick_dt, bool 
       catch_up_.reset(f);
       passivity_.reset(f);
     }
-    r.present = present;
+    r.present = present[f];
     contact = contact || r.in_contact;
   }
   if (contact) ++contact_ticks_;
@@ -165,13 +171,13 @@ void HapticLoop::touch(const ClothSnapshot& s, double now, double tick_dt, bool 
 
 // The command per finger in the device frame: the contact's force, plus the passivity
 // controller's damping where the coupling gave energy over the last interval.
-void HapticLoop::command(double tick_dt, bool present, const std::array<Fingertip, kMaxFingers>& tips,
+void HapticLoop::command(double tick_dt, const Presence& present, const std::array<Fingertip, kMaxFingers>& tips,
                          const std::array<Vec3, kMaxFingers>& measured) noexcept {
   for (int f = 0; f < fingers_; ++f) {
     const FingerReport& r = report_.finger[f];
     Vec3& damp = damp_[f];
     damp.setZero();
-    if (present)
+    if (present[f])
       damp = passivity_.observe(f, tick_dt, sent_[f], measured[f], r.proxy, tips[f].velocity, r.force,
                                 r.spring, r.in_contact);
     if (!guard_) damp.setZero();

@@ -78,15 +78,17 @@ class HapticLoop {
   void set_time_guard(bool on) { guard_ = on; }
 
  private:
+  using Presence = std::array<bool, kMaxFingers>;
+  Presence presence(double now) const noexcept;
   static void absent(FingerReport& r, const Vec3& centre, const Vec3& velocity) noexcept;
   void count_skipped_narrow_phase(const ClothSnapshot& s) noexcept;
-  void read_fingertips(double tick_dt, bool present, std::array<Fingertip, kMaxFingers>& tips,
+  void read_fingertips(double tick_dt, const Presence& present, std::array<Fingertip, kMaxFingers>& tips,
                        std::array<Vec3, kMaxFingers>& measured) noexcept;
-  void touch(const ClothSnapshot& s, double now, double tick_dt, bool present,
+  void touch(const ClothSnapshot& s, double now, double tick_dt, const Presence& present,
              const std::array<Fingertip, kMaxFingers>& tips,
              const std::array<Vec3, kMaxFingers>& measured) noexcept;
   void bound_energy(const std::array<Fingertip, kMaxFingers>& tips) noexcept;
-  void command(double tick_dt, bool present, const std::array<Fingertip, kMaxFingers>& tips,
+  void command(double tick_dt, const Presence& present, const std::array<Fingertip, kMaxFingers>& tips,
                const std::array<Vec3, kMaxFingers>& measured) noexcept;
   void report_felt_forces() noexcept;
 
