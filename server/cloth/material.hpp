@@ -4,6 +4,7 @@
 #include <string>
 
 #include "cloth/curve.hpp"
+#include "cloth/surface.hpp"
 
 namespace hapticloth::cloth {
 
@@ -16,6 +17,7 @@ struct Material {
   StrainStressCurve weft;      ///< sigma_uu(eps_uu), N/m
   StrainStressCurve warp;      ///< sigma_vv(eps_vv), N/m
   StrainStressCurve shear;     ///< sigma_uv(eps_uv), N/m, odd
+  Surface surface;             ///< what the skin feels (tactile rendering); absent if not given
 
   bool viscous() const {
     return weft.viscosity > 0.0 || warp.viscosity > 0.0 || shear.viscosity > 0.0;

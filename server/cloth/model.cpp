@@ -12,6 +12,7 @@ ClothModel build_model(const Mesh& mesh, const Material& material, const std::ve
   ClothModel m;
   m.material = material;
   m.rest_positions = mesh.positions;
+  m.weave_uv = mesh.weave_uv;
   const int nv = static_cast<int>(mesh.positions.size());
   if (mesh.triangles.size() != mesh.weave_uv.size())
     throw std::invalid_argument("mesh: one set of weave coordinates per triangle is required");

@@ -16,6 +16,9 @@ struct ClothModel {
   Material material;
   std::vector<ElementRest> elements;
   std::vector<std::array<int, 3>> triangles;  ///< per element, its vertices (the touched surface)
+  /// Per element, per corner: its material (weave) coordinates u along the weft, v along the
+  /// warp, m (Mesh::weave_uv): where on the fabric's surface a point is (tactile rendering).
+  std::vector<std::array<std::array<double, 2>, 3>> weave_uv;
   std::vector<Vec3> rest_positions;
   std::vector<double> mass;         ///< lumped vertex mass, kg (areal density x area / 3)
   std::vector<double> vertex_area;  ///< lumped vertex area, m^2

@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <string>
 
+#include <Eigen/Geometry>
+
 #include "hal/device.hpp"
 #include "haptics/geometry.hpp"
 
@@ -592,15 +594,42 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
   return true;
 }
 
-double FingertipContact::exact_penetration(int f, const std::vector<Vec3>& x, const Vec3& c) const {
+// How deep the sphere (centre c) is past the cloth's point nearest its centre among finger f's
+// candidate triangles (0 if not past), and where on the weave the fingertip presses: the point
+// the contact normal through the centre meets the cloth (r.normal, towards the finger). Not the
+// nearest point: a cloth wrapped round the sphere is nearly as near everywhere in the patch, and
+// the nearest point jumps about in it; nor the contacts' force-weighted centre, which moves in
+// steps as samples join and leave. A tactile channel fed from either feels the jumps as texture.
+void FingertipContact::nearest_surface(int f, const std::vector<Vec3>& x, const Vec3& c, ProxyResult& r) const {
   const Finger& F = fing_[f];
-  double best = 0.0;
+  double best = INFINITY, hit_at = INFINITY;
+  int tri = -1;
+  double b[3] = {0.0, 0.0, 0.0};
+  const Vec3 d = -r.normal;
   for (int i = 0; i < F.ncand; ++i) {
     const auto& t = tris_[F.cand[i]];
-    const ClosestPoint cp = closest_point_triangle(c, x[t[0]], x[t[1]], x[t[2]]);
-    best = std::max(best, p_.radius - std::sqrt(cp.dist2));
+    const Vec3 &a = x[t[0]], &e1 = x[t[1]], &e2 = x[t[2]];
+    best = std::min(best, closest_point_triangle(c, a, e1, e2).dist2);
+    // The ray c + s d against the triangle (Moller and Trumbore), s >= 0.
+    const Vec3 u = e1 - a, w = e2 - a, pv = d.cross(w);
+    const double det = u.dot(pv);
+    if (std::abs(det) < 1e-18) continue;
+    const Vec3 tv = c - a;
+    const double bu = tv.dot(pv) / det;
+    const Vec3 qv = tv.cross(u);
+    const double bv = d.dot(qv) / det, s = w.dot(qv) / det;
+    if (bu < 0.0 || bv < 0.0 || bu + bv > 1.0 || s < 0.0 || s >= hit_at) continue;
+    hit_at = s;
+    tri = F.cand[i];
+    b[0] = 1.0 - bu - bv;
+    b[1] = bu;
+    b[2] = bv;
   }
-  return best;
+  r.penetration = std::isfinite(best) ? std::max(0.0, p_.radius - std::sqrt(best)) : 0.0;
+  if (tri < 0 || model_.weave_uv.size() != tris_.size()) return;
+  const auto& uv = model_.weave_uv[static_cast<size_t>(tri)];
+  r.weave_u = b[0] * uv[0][0] + b[1] * uv[1][0] + b[2] * uv[2][0];
+  r.weave_v = b[0] * uv[0][1] + b[1] * uv[1][1] + b[2] * uv[2][1];
 }
 
 void FingertipContact::end_step(const cloth::ClothState& s) {
@@ -668,7 +697,7 @@ void FingertipContact::end_step(const cloth::ClothState& s) {
     // c F beyond the proxy (along -n in a frictionless press). Reported there, the coupling's
     // spring k (proxy - target) is F, as the passivity controller's energy balance needs.
     r.proxy = P.x - refined_c_[f] * r.force;
-    r.penetration = exact_penetration(f, s.x, P.x);
+    nearest_surface(f, s.x, P.x, r);
     max_pen_ = std::max(max_pen_, r.penetration);
     samples_in_contact_ += r.points;
   }

@@ -34,6 +34,9 @@ struct ProxyResult {
   double normal_force = 0.0;     ///< sum of the contacts' normal force magnitudes, N
   double friction_force = 0.0;   ///< sum of the contacts' tangential force magnitudes, N
   double penetration = 0.0;      ///< deepest cloth point inside the sphere, m
+  /// Material coordinates (u weft, v warp), m, of the cloth's point nearest the proxy's
+  /// centre: where on the fabric's surface the fingertip presses (tactile rendering).
+  double weave_u = 0.0, weave_v = 0.0;
   /// N/m: the coupling spring the step solved with (the scene's, or with local refinement the
   /// scene's in series with the compliance the global mesh lacks: LocalRefinement).
   double coupling_stiffness = 0.0;

@@ -2,6 +2,7 @@
 // whose errors name the file, the line and the key (support/config_files.hpp).
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -10,7 +11,10 @@
 
 namespace {
 
+using hapticloth::app::format_material;
 using hapticloth::app::load_material;
+using hapticloth::app::parse_material;
+using hapticloth::app::TomlFile;
 using namespace hapticloth::test;
 
 const std::string kSourceDir = HAPTICLOTH_SOURCE_DIR;
@@ -85,6 +89,94 @@ TEST_F(FilesTest, BadMaterialsNameTheFileLineAndKey) {
   const auto load = [](const std::string& path) { load_material(path); };
   expect_bad_files(cases, "m.toml", load);
   expect_cannot_open("no_such_material.toml", load);
+}
+
+// Every shipped material carries a surface for tactile rendering, with its source, both yarn
+// directions, and friction figures (issue 37, point 1).
+TEST(ShippedFiles, EveryMaterialHasASurfaceWithItsSource) {
+  int n = 0;
+  for (const auto& e : std::filesystem::directory_iterator(kSourceDir + "/tools/materials")) {
+    if (e.path().extension() != ".toml") continue;
+    SCOPED_TRACE(e.path().string());
+    const auto m = load_material(e.path().string());
+    ++n;
+    EXPECT_TRUE(m.surface.present());
+    EXPECT_FALSE(m.surface.weft.empty());
+    EXPECT_FALSE(m.surface.warp.empty());
+    EXPECT_FALSE(m.surface.source.empty());
+    EXPECT_GT(m.surface.miu, 0.0);
+    EXPECT_GT(m.surface.mmd, 0.0);
+    // a yarn every 0.1-2 mm, a relief of micrometres
+    for (const auto* p : {&m.surface.weft, &m.surface.warp}) {
+      EXPECT_GT(p->period(), 1e-4);
+      EXPECT_LT(p->period(), 2e-3);
+      EXPECT_GT(p->mean_deviation(), 0.5e-6);
+      EXPECT_LT(p->mean_deviation(), 50e-6);
+    }
+  }
+  EXPECT_GE(n, 5);
+}
+
+const std::string kSurface =
+    "\n"                                           // 15
+    "[surface]\n"                                  // 16
+    "source = \"a test\"\n"                        // 17
+    "miu = 0.2\n"                                  // 18
+    "mmd = 0.01\n"                                 // 19
+    "[surface.weft]\n"                             // 20
+    "yarn_spacing = 0.5e-3\n"                      // 21
+    "amplitude = 10e-6\n"                          // 22
+    "shape = \"yarn\"\n"                           // 23
+    "[surface.warp]\n"                             // 24
+    "trace = \"traces/warp.csv\"\n";               // 25
+
+std::string trace_csv(int rows) {
+  std::string t = "distance_m,height_m\n# a measured-style trace\n";
+  for (int i = 0; i < rows; ++i)
+    t += std::to_string(i * 1e-5) + "," + std::to_string(1e-6 * ((i * 7) % 5)) + "\n";
+  return t;
+}
+
+// A surface from a weave and from a trace CSV (relative to the material file) loads, and is
+// written back as it was given.
+TEST_F(FilesTest, SurfaceFromAWeaveAndATraceLoadsAndWritesBack) {
+  write("traces/warp.csv", trace_csv(50));
+  const auto m = load_material(write("m.toml", kMaterial + kSurface));
+  EXPECT_EQ(m.surface.source, "a test");
+  EXPECT_DOUBLE_EQ(m.surface.miu, 0.2);
+  EXPECT_DOUBLE_EQ(m.surface.mmd, 0.01);
+  EXPECT_DOUBLE_EQ(m.surface.weft.period(), 0.5e-3);
+  EXPECT_NEAR(m.surface.warp.period(), 50e-5, 1e-9);
+  EXPECT_EQ(m.surface.warp_source.trace, "traces/warp.csv");
+  const auto again = load_material(write("again.toml", format_material(m)));
+  EXPECT_EQ(again.surface.weft.samples(), m.surface.weft.samples());
+  EXPECT_EQ(again.surface.warp.samples(), m.surface.warp.samples());
+  EXPECT_DOUBLE_EQ(again.surface.mmd, 0.01);
+  EXPECT_FALSE(load_material(write("plain.toml", kMaterial)).surface.present());
+}
+
+TEST_F(FilesTest, BadSurfacesNameTheFileLineAndKey) {
+  write("traces/warp.csv", trace_csv(50));
+  const std::string good = kMaterial + kSurface;
+  const std::vector<BadFile> cases = {
+      {"NegativeYarnSpacing", with_line(good, 21, "yarn_spacing = -0.5e-3"), 21, {"key 'surface.weft.yarn_spacing'"}},
+      {"HugeAmplitude", with_line(good, 22, "amplitude = 0.01"), 22, {"key 'surface.weft.amplitude'"}},
+      {"UnknownShape", with_line(good, 23, "shape = \"twill\""), 23, {"key 'surface.weft.shape'", "twill"}},
+      {"FrictionOutOfRange", with_line(good, 18, "miu = -0.1"), 18, {"key 'surface.miu'"}},
+      {"UnknownKey", with_line(good, 19, "mdd = 0.01"), 19, {"key 'surface.mdd'", "unknown key"}},
+      {"TraceAndWeave", with_line(good, 25, "trace = \"traces/warp.csv\"\nshape = \"sine\""), 25,
+       {"key 'surface.warp.trace'", "not both"}},
+      {"MissingTrace", with_line(good, 25, "trace = \"traces/none.csv\""), 25,
+       {"key 'surface.warp.trace'", "none.csv", "cannot read"}},
+      {"MissingSource", with_line(good, 17, ""), 16, {"key 'surface.source'", "missing"}},
+  };
+  expect_bad_files(cases, "m.toml", [](const std::string& path) { load_material(path); });
+  // A bad row of the trace names the material's key, and the CSV's own file and line.
+  std::string csv = trace_csv(50);
+  csv.replace(csv.find("0.000030,"), 9, "0.0000x0,");
+  write("traces/warp.csv", csv);
+  const std::string path = write("m.toml", good);
+  expect_config_error([&] { load_material(path); }, {path + at_line(25), "warp.csv" + at_line(6), "distance_m,height_m"});
 }
 
 }  // namespace

@@ -342,6 +342,21 @@ def test_segments_option(tmp_path, capsys):
     assert r.returncode == 2 and "--segments" in r.stderr
 
 
+def test_refit_keeps_the_surface_section(tmp_path, capsys):
+    """The [surface] tables (tactile rendering) are not fitted: a refit over a material file
+    keeps them, with their comments, and the server still reads the file."""
+    out = tmp_path / "w.toml"
+    shipped = (LIBRARY / "white-dots-on-blk.toml").read_text()
+    out.write_text(shipped)
+    assert fit.main([str(MEASURED / "white-dots-on-blk.csv"), "-o", str(out)]) == 0
+    capsys.readouterr()
+    text = out.read_text()
+    surface = shipped[shipped.index("# Surface for tactile rendering"):]
+    assert text.endswith(surface), text[-600:]
+    assert tomllib.loads(text)["surface"]["warp"]["yarn_spacing"] > 0.0
+    assert_server_accepts(out, tmp_path)
+
+
 # --------------------------------------------------------------------------------------------
 # The committed material library
 # --------------------------------------------------------------------------------------------

@@ -19,7 +19,7 @@ from .errors import EXIT_FAILED, UserError, check_writable, run_cli
 from .fit_csv import read_measured
 from .fit_curves import MAX_SEGMENTS, fit_measured
 from .fit_report import plot_fits, report_json, report_text
-from .fit_toml import material_toml
+from .fit_toml import kept_surface, material_toml
 
 # Imported from hapticloth.fit by the tests.
 from .fit_curves import _basis, _coefficients_to_B, fit_curve  # noqa: F401
@@ -79,8 +79,9 @@ def _main(argv: list[str] | None) -> int:
     argv_list = sys.argv[1:] if argv is None else argv
     command = "hapticloth-fit " + " ".join(_shell_quote(a) for a in argv_list)
     try:
+        surface = kept_surface(args.output)
         with open(args.output, "w", encoding="utf-8") as f:
-            f.write(material_toml(measured, fits, command))
+            f.write(material_toml(measured, fits, command) + surface)
         if args.plot:
             plot_fits(measured, fits, args.plot)
     except OSError as e:

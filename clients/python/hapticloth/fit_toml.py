@@ -73,3 +73,19 @@ def _wrap_comment(line: str, width: int = 100) -> list[str]:
             current = f"{current} {word}" if current else word
     out.append(current)
     return out
+
+
+def kept_surface(path: str) -> str:
+    """The [surface] tables (tactile rendering, not fitted here) of an existing material file,
+    with the comment lines just above them, so that a refit keeps them; "" if there are none."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            lines = f.read().splitlines()
+    except OSError:
+        return ""
+    start = next((i for i, x in enumerate(lines) if x.startswith("[surface")), None)
+    if start is None:
+        return ""
+    while start > 0 and lines[start - 1].startswith("#"):
+        start -= 1
+    return "\n" + "\n".join(lines[start:]) + "\n"
