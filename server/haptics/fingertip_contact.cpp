@@ -538,12 +538,11 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
   // revisions a contact that slides stays sliding to the next step, 1 ms later (its magnitude
   // still follows its normal force). Otherwise contacts at the cone's edge flip between stick
   // and slide until the revision cap, and the step ends before the samples that the last solve
-  // pushed inside are added. A long global
-  // step of the multirate path holds its friction state for the whole step and keeps revising
-  // it (deferring there let the 20 ms pinch carry 10% less than the weight). The integrator's
-  // line search keeps whole re-solves from overshooting (Integrator::revise_contacts; a step
-  // revised on local settles has none); contacts released earlier in the step come back with
-  // their state (add_contacts, restore_touching).
+  // pushed inside are added. A long global step of the multirate path holds its friction state
+  // for the whole step and keeps revising it (deferring there let the 20 ms pinch carry 10% less
+  // than the weight). The integrator's line search keeps whole re-solves from overshooting
+  // (Integrator::revise_contacts; a step revised on local settles has none); contacts released
+  // earlier in the step come back with their state (add_contacts, restore_touching).
   // A re-solve that left the solution as it was (a PCG re-solve that took no iteration) hands
   // back the same candidate: on it, a contact whose friction the solver cannot resolve (a change
   // under its tolerance) would switch between sticking and sliding until the free revisions ran
@@ -598,8 +597,9 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
 // candidate triangles (0 if not past), and where on the weave the fingertip presses: the point
 // the contact normal through the centre meets the cloth (r.normal, towards the finger). Not the
 // nearest point: a cloth wrapped round the sphere is nearly as near everywhere in the patch, and
-// the nearest point jumps about in it; nor the contacts' force-weighted centre, which moves in
-// steps as samples join and leave. A tactile channel fed from either feels the jumps as texture.
+// the nearest point jumps about in it by millimetres; nor the contacts' force-weighted centre,
+// which moves in steps as samples join and leave. The ray still wobbles with the summed normal
+// from tick to tick; a tactile channel needs a tracker that integrates the contact's slip.
 void FingertipContact::nearest_surface(int f, const std::vector<Vec3>& x, const Vec3& c, ProxyResult& r) const {
   const Finger& F = fing_[f];
   double best = INFINITY, hit_at = INFINITY;
