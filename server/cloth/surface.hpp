@@ -71,6 +71,8 @@ struct Surface {
   }
   /// The friction coefficient at (u, v).
   double friction(double u, double v) const noexcept;
+  /// d mu / d h, 1/m: how the friction coefficient follows the height, MMD / mean |h|.
+  double friction_per_height() const noexcept { return mmd * phi_scale_; }
   /// Sets the friction pattern's scale from the profiles (call after setting them).
   void normalize_friction();
 

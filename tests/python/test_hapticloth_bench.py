@@ -162,6 +162,19 @@ def test_late_ticks():
     assert pinch20["unguarded"]["max_force_jump_n"] > 5.0 * pinch20["max_force_jump_n"]
 
 
+def test_tactile():
+    """hapticloth-bench tactile (issue 37, point 6): every shipped material, both directions, 20
+    to 200 mm/s. The vibration peaks at v / lambda within 2% or one bin; its third-octave bands
+    from 20 to 400 Hz are within 1.6 dB of the surface model's; a still press gives nothing."""
+    j = bench("tactile", timeout=300)
+    assert len(j["cases"]) == 5 * 2 * 4
+    assert {c["speed_m_s"] for c in j["cases"]} == {0.02, 0.05, 0.1, 0.2}
+    for c in j["cases"]:
+        assert abs(c["peak_hz"] - c["expected_hz"]) <= max(0.02 * c["expected_hz"], c["bin_hz"]), c
+        assert c["band_error_db_max"] <= 1.6, c
+    assert j["still_rms"] == 0.0
+
+
 def test_haptic_subscribers():
     """hapticloth-bench haptic --subscribers: 3 alternating off/on pairs of server runs in a
     network namespace, each with the platform timer beside; every subscriber, over zenoh and

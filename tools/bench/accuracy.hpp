@@ -75,6 +75,15 @@ struct LateTickOptions {
 /// the energy the coupling gave beyond passivity and the force jumps, against the run on time.
 nlohmann::json late_ticks(const LateTickOptions& opt);
 
+struct TactileBenchOptions {
+  std::string source_dir;
+};
+
+/// Strokes at 20, 50, 100 and 200 mm/s along the weft and the warp of every shipped material
+/// through one fingertip's tactile channel (tools/bench/tactile.cpp): the vibration's peak
+/// against v / lambda, its third-octave bands against the surface model's, and a still press.
+nlohmann::json tactile(const TactileBenchOptions& opt);
+
 /// The scene's cloth pinched at its middle by both fingertips (direct coupling, the scene's
 /// solver) for `seconds` on the stepped clock: the global step's time with both in contact.
 /// With `settle_s` > 0 the cloth is first brought to rest (settle_s of 20 ms steps) and pinched

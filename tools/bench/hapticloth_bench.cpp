@@ -107,12 +107,12 @@ int main(int argc, char** argv) {
   // The benchmark's name comes first: say which option or name is wrong (CLI11 would only say
   // that a subcommand is required).
   const std::vector<std::string> names{"step", "haptic", "timer", "accuracy", "stability", "limit", "fidelity",
-                                        "late-ticks"};
+                                        "late-ticks", "tactile"};
   if (argc >= 2 && std::string(argv[1]) != "-h" && std::string(argv[1]) != "--help" &&
       std::find(names.begin(), names.end(), argv[1]) == names.end()) {
     std::cerr << "hapticloth-bench: " << (argv[1][0] == '-' ? "unknown option " : "unknown benchmark ")
               << argv[1] << " (the benchmark comes first: step, haptic, timer, accuracy, stability, limit, "
-              << "fidelity, late-ticks, udp, transport; --help)\n";
+              << "fidelity, late-ticks, tactile, udp, transport; --help)\n";
     return 2;
   }
   CLI::App cli{"hapticloth-bench: benchmarks with machine-readable output"};
@@ -245,6 +245,10 @@ int main(int argc, char** argv) {
   unsigned late_seed = 1;
   late->add_option("--seed", late_seed, "seed of the late moments (default 1)");
   late->add_flag("--json", json, "one JSON object on one line");
+  auto* tac = cli.add_subcommand(
+      "tactile", "strokes over every shipped material's weave through the tactile channel: peak "
+                 "against v / lambda, third-octave bands against the surface model (docs/tactile.md)");
+  tac->add_flag("--json", json, "one JSON object on one line");
   // Listed for --help; they run in their own programs (exec_sibling above, before parsing).
   cli.add_subcommand("udp", "rig -> server -> rig round trip of the UDP device on loopback, beside "
                             "the platform's timer (options: hapticloth-bench udp --help)");
@@ -269,6 +273,7 @@ int main(int argc, char** argv) {
       {lim, [&] { return bench::limit({.quick = quick, .source_dir = source_dir}); }, false},
       {fid, [&] { return bench::fidelity({.quick = quick, .square_press = square_quads}); }, false},
       {late, [&] { return bench::late_ticks({.source_dir = source_dir, .seed = late_seed}); }, false},
+      {tac, [&] { return bench::tactile({.source_dir = source_dir}); }, false},
   };
 
   try {
