@@ -5,12 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <complex>
 #include <random>
 #include <vector>
 
 #include "cloth/surface.hpp"
 #include "support/alloc_counter.hpp"
+#include "support/spectrum.hpp"
 #include "tactile/tactile_channel.hpp"
 
 using namespace hapticloth;
@@ -18,6 +18,7 @@ using tactile::TactileChannel;
 using tactile::TactileInput;
 using tactile::TactileOutput;
 using tactile::TactileParams;
+using test::power_spectrum;
 
 namespace {
 
@@ -54,23 +55,6 @@ std::vector<double> stroke(const cloth::Surface& s, double speed, double du, dou
     if (i > skip) sig.insert(sig.end(), out.vibration.begin(), out.vibration.begin() + out.samples);
   }
   return sig;
-}
-
-// |X_k|^2 of the mean-removed signal for bins 0..n/2 (a plain DFT: the tests' signals are short).
-std::vector<double> power_spectrum(const std::vector<double>& x) {
-  const size_t n = x.size();
-  double mean = 0.0;
-  for (double v : x) mean += v;
-  mean /= static_cast<double>(n);
-  std::vector<double> p(n / 2 + 1);
-  for (size_t k = 0; k < p.size(); ++k) {
-    std::complex<double> acc = 0.0;
-    const std::complex<double> w = std::polar(1.0, -2.0 * kPi * static_cast<double>(k) / static_cast<double>(n));
-    std::complex<double> wk = 1.0;
-    for (size_t i = 0; i < n; ++i, wk *= w) acc += (x[i] - mean) * wk;
-    p[k] = std::norm(acc);
-  }
-  return p;
 }
 
 double peak_hz(const std::vector<double>& sig, double rate) {
@@ -134,19 +118,12 @@ TEST(TactileChannel, SpectrumFollowsTheSurfaceByThirdOctaveBand) {
   const double gain = fn / p.full_force;
   const double df_sig = p.rate / static_cast<double>(sig.size());
   const double df_trace = v / s.weft.period();  // Hz per spatial bin at speed v
-  // Parseval: mean square per band. The signal's |X|^2 / N^2 against the trace's, gain^2.
+  // Mean square per band (Parseval): the signal's against the trace's times gain^2.
+  const std::vector<double> es = test::third_octave_bands(ps, df_sig), et = test::third_octave_bands(ph, df_trace);
   double worst = 0.0;
-  for (double fc = 20.0; fc <= 400.0 * 1.0001; fc *= std::pow(2.0, 1.0 / 3.0)) {
-    const double lo = fc * std::pow(2.0, -1.0 / 6.0), hi = fc * std::pow(2.0, 1.0 / 6.0);
-    double es = 0.0, et = 0.0;
-    for (size_t k = 1; k < ps.size(); ++k)
-      if (k * df_sig >= lo && k * df_sig < hi) es += ps[k];
-    for (size_t k = 1; k < ph.size(); ++k)
-      if (k * df_trace >= lo && k * df_trace < hi) et += ph[k];
-    es /= std::pow(static_cast<double>(sig.size()), 2);
-    et *= gain * gain / std::pow(static_cast<double>(ph.size() * 2 - 2), 2);
-    const double db = 10.0 * std::log10(es / et);
-    std::printf("band %6.1f Hz: %+.2f dB\n", fc, db);
+  for (size_t b = 0; b < es.size(); ++b) {
+    const double db = 10.0 * std::log10(es[b] / (gain * gain * et[b]));
+    std::printf("band %6.1f Hz: %+.2f dB\n", 20.0 * std::pow(2.0, static_cast<double>(b) / 3.0), db);
     worst = std::max(worst, std::abs(db));
   }
   EXPECT_LE(worst, 1.6);

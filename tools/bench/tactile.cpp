@@ -5,12 +5,12 @@
 // pressing and still (docs/tactile.md).
 #include <algorithm>
 #include <cmath>
-#include <complex>
 #include <filesystem>
 #include <vector>
 
 #include "accuracy.hpp"
 #include "app/material_file.hpp"
+#include "support/spectrum.hpp"
 #include "tactile/tactile_channel.hpp"
 
 namespace hapticloth::bench {
@@ -19,7 +19,6 @@ using nlohmann::json;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kTick = 1e-3;
 constexpr double kNormalForce = 0.3;  // N: a light stroke, below the skin's full_force
 
@@ -44,35 +43,13 @@ std::vector<double> stroke(const cloth::Surface& s, const tactile::TactileParams
   return sig;
 }
 
-// |X_k|^2 / N^2 of the mean-removed signal, bins 0..N/2.
-std::vector<double> power(const std::vector<double>& x) {
-  const size_t n = x.size();
-  double mean = 0.0;
-  for (double v : x) mean += v;
-  mean /= static_cast<double>(n);
-  std::vector<double> p(n / 2 + 1);
-  for (size_t k = 0; k < p.size(); ++k) {
-    const std::complex<double> w = std::polar(1.0, -2.0 * kPi * static_cast<double>(k) / static_cast<double>(n));
-    std::complex<double> acc = 0.0, wk = 1.0;
-    for (size_t i = 0; i < n; ++i, wk *= w) acc += (x[i] - mean) * wk;
-    p[k] = std::norm(acc) / (static_cast<double>(n) * static_cast<double>(n));
-  }
-  return p;
-}
-
 // The largest |dB| between two spectra's third-octave bands from 20 to 400 Hz (bins df_a and
 // df_b Hz apart), over the bands where the prediction b holds energy.
 double band_error_db(const std::vector<double>& a, double df_a, const std::vector<double>& b, double df_b) {
+  const std::vector<double> ea = test::third_octave_bands(a, df_a), eb = test::third_octave_bands(b, df_b);
   double worst = 0.0;
-  for (double fc = 20.0; fc <= 400.0 * 1.0001; fc *= std::pow(2.0, 1.0 / 3.0)) {
-    const double lo = fc * std::pow(2.0, -1.0 / 6.0), hi = fc * std::pow(2.0, 1.0 / 6.0);
-    double ea = 0.0, eb = 0.0;
-    for (size_t k = 1; k < a.size(); ++k)
-      if (k * df_a >= lo && k * df_a < hi) ea += a[k];
-    for (size_t k = 1; k < b.size(); ++k)
-      if (k * df_b >= lo && k * df_b < hi) eb += b[k];
-    if (eb > 1e-30) worst = std::max(worst, std::abs(10.0 * std::log10(std::max(ea, 1e-300) / eb)));
-  }
+  for (size_t k = 0; k < ea.size(); ++k)
+    if (eb[k] > 1e-30) worst = std::max(worst, std::abs(10.0 * std::log10(std::max(ea[k], 1e-300) / eb[k])));
   return worst;
 }
 
@@ -98,12 +75,12 @@ json tactile(const TactileBenchOptions& o) {
       // phase with the height.
       const double gain = std::min(kNormalForce / p.full_force, 1.0);
       const double scale = gain * (1.0 + m.surface.friction_per_height() * kNormalForce / p.skin_stiffness);
-      std::vector<double> pred = power(prof.samples());
+      std::vector<double> pred = test::power_spectrum(prof.samples());
       for (double& x : pred) x *= scale * scale;
       for (const double v : {0.02, 0.05, 0.1, 0.2}) {
         const double period_s = lambda / v, seconds = std::ceil(0.5 / period_s) * period_s;
         const std::vector<double> sig = stroke(m.surface, p, dir, v, seconds);
-        const std::vector<double> ps = power(sig);
+        const std::vector<double> ps = test::power_spectrum(sig);
         const double df = p.rate / static_cast<double>(sig.size());
         size_t best = 1;
         for (size_t k = 1; k < ps.size(); ++k)
