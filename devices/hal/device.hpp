@@ -18,12 +18,13 @@
 
 #include <Eigen/Core>
 
+#include "hal/limits.hpp"
+#include "hal/tactile.hpp"
+
 namespace hapticloth::devices {
 
 using Vec3 = Eigen::Vector3d;
 
-/// Most fingers a device may have (fixed storage: no allocation on the real-time path).
-inline constexpr int kMaxFingers = 5;
 
 struct Box {
   Vec3 min{-0.1, -0.1, -0.1};
@@ -40,15 +41,14 @@ struct DeviceInfo {
   double max_force = 5.0;          ///< N per finger
   double max_stiffness = 2000.0;   ///< N/m: stiffest spring the device renders stably
   double nominal_rate = 1000.0;    ///< Hz
+  TactileCapability tactile;       ///< its tactile display, if any (hal/tactile.hpp)
 };
 
-/// A pinch needs two fingers; the HAL carries at most kMaxFingers.
-inline constexpr int kMinFingers = 2;
 inline bool valid_finger_count(int n) { return n >= kMinFingers && n <= kMaxFingers; }
 
 /// The one check of what a device says it is (every driver, the handle and the safety gate use
 /// it): empty if usable, else what is wrong, naming the field (`fingers`, `max_force`,
-/// `max_stiffness`, `nominal_rate`, `workspace`).
+/// `max_stiffness`, `nominal_rate`, `workspace`, `tactile.*`).
 std::string validate(const DeviceInfo& info);
 
 struct FingerState {
@@ -135,6 +135,13 @@ class Device {
   virtual Status read(double now, DeviceState& state) noexcept = 0;
   /// Real-time path. The command has already passed the SafetyGate.
   virtual Status write(double now, const DeviceCommand& cmd) noexcept = 0;
+  /// Real-time path, after write(), on a device whose info() declares a tactile display only:
+  /// this tick's tactile output, through the SafetyGate too.
+  virtual Status write_tactile(double now, const TactileCommand& cmd) noexcept {
+    (void)now;
+    (void)cmd;
+    return Status::Ok;
+  }
 
   /// Whether the device streams its samples on its own clock and can pace the loop (a tick
   /// per sample: DeviceClock). False for a device the loop polls (mock, replay).

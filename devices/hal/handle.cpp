@@ -86,6 +86,11 @@ Status DeviceHandle::write(double now, const DeviceCommand& c) noexcept {
   return after_driver(dev_->write(now, c), state_, failed_);
 }
 
+Status DeviceHandle::write_tactile(double now, const TactileCommand& c) noexcept {
+  if (state_ != Lifecycle::Active) return Status::Error;
+  return after_driver(dev_->write_tactile(now, c), state_, failed_);
+}
+
 bool DeviceHandle::await_sample(double until) noexcept {
   return state_ == Lifecycle::Active && dev_->await_sample(until);
 }

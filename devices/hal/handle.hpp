@@ -27,6 +27,7 @@ class DeviceHandle {
   /// the handle to Failed.
   Status read(double now, DeviceState& s) noexcept;
   Status write(double now, const DeviceCommand& c) noexcept;
+  Status write_tactile(double now, const TactileCommand& c) noexcept;
   /// Real-time path: the driver's await_sample while Active; false at once otherwise.
   bool await_sample(double until) noexcept;
 

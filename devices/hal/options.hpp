@@ -19,6 +19,7 @@ struct DeviceOptions {
   double max_force = 5.0;             ///< N per finger
   double max_stiffness = 2000.0;      ///< N/m
   double rate = 1000.0;               ///< Hz, nominal
+  TactileCapability tactile;          ///< the tactile display (mock, udp: the scene's [device.tactile])
 
   // mock
   std::string script;                 ///< trajectory file (.toml or .csv); empty: built-in demo
@@ -49,6 +50,7 @@ inline DeviceInfo device_info(const DeviceOptions& o, const char* name) {
   i.max_force = o.max_force;
   i.max_stiffness = o.max_stiffness;
   i.nominal_rate = o.rate;
+  i.tactile = o.tactile;
   return i;
 }
 

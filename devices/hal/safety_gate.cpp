@@ -7,7 +7,8 @@
 
 namespace hapticloth::devices {
 
-SafetyGate::SafetyGate(const DeviceInfo& info, const GateConfig& cfg) : fingers_(info.fingers) {
+SafetyGate::SafetyGate(const DeviceInfo& info, const GateConfig& cfg)
+    : fingers_(info.fingers), tactile_(info.tactile) {
   auto bad = [](const std::string& f) {
     throw std::invalid_argument("safety gate: " + f + " must be finite and > 0");
   };
@@ -78,6 +79,43 @@ void SafetyGate::apply(double now, double state_time, const DeviceCommand& in,
     out.force[i] = f;
   }
   out.flags = flags | (in.flags & ~(kFlagStale | kFlagClamped | kFlagFault));
+}
+
+namespace {
+
+// v within +-limit, zero if not finite; counts what it changed.
+float limited(float v, double limit, std::uint32_t& flags, GateCounters& c) noexcept {
+  if (!std::isfinite(v)) {
+    flags |= kTactileFault;
+    ++c.tactile_non_finite;
+    return 0.0f;
+  }
+  if (std::abs(v) > limit) {
+    flags |= kTactileClamped;
+    ++c.tactile_clamped;
+    return static_cast<float>(std::copysign(limit, v));
+  }
+  return v;
+}
+
+}  // namespace
+
+void SafetyGate::apply_tactile(const TactileCommand& in, TactileCommand& out) noexcept {
+  ++c_.tactile_commands;
+  std::uint32_t flags = gain_ < 1.0 ? kTactileFaded : 0u;
+  const float g = static_cast<float>(gain_);
+  for (int i = 0; i < kMaxFingers; ++i) {
+    const TactileFrame& a = in.finger[i];
+    TactileFrame& b = out.finger[i];
+    const bool here = i < fingers_;
+    b.samples = here && tactile_.vibration() ? std::clamp(a.samples, 0, kMaxTactileSamples) : 0;
+    for (int k = 0; k < b.samples; ++k) b.vibration[k] = g * limited(a.vibration[k], tactile_.max_vibration, flags, c_);
+    const bool pins = here && tactile_.pins() && a.rows == tactile_.pin_rows && a.cols == tactile_.pin_cols;
+    b.rows = pins ? a.rows : 0;
+    b.cols = pins ? a.cols : 0;
+    for (int k = 0; k < b.rows * b.cols; ++k) b.pins[k] = g * limited(a.pins[k], tactile_.max_pin, flags, c_);
+  }
+  out.flags = flags;
 }
 
 }  // namespace hapticloth::devices

@@ -1,7 +1,9 @@
 // The one gate every force passes before any driver sees it (libfranka style): non-finite ->
 // zero and a counted event; clamp to the device's maximum force; slew-rate limit; watchdog:
 // when the device state is older than the watchdog time the forces ramp to zero and the device
-// is reported stale, and they ramp back when fresh state returns. Real-time safe.
+// is reported stale, and they ramp back when fresh state returns. The tactile output passes the
+// same gate: non-finite -> zero, clamped to the display's limits, faded with the forces.
+// Real-time safe.
 #pragma once
 
 #include <array>
@@ -26,6 +28,9 @@ struct GateCounters {
   std::uint64_t slew_limited = 0;  ///< forces whose change was limited
   std::uint64_t stale_events = 0;  ///< fresh -> stale transitions
   std::uint64_t stale_ticks = 0;   ///< commands issued while stale
+  std::uint64_t tactile_commands = 0;
+  std::uint64_t tactile_non_finite = 0;  ///< tactile samples or pins replaced by zero
+  std::uint64_t tactile_clamped = 0;     ///< tactile samples or pins clamped to the display's limit
 };
 
 class SafetyGate {
@@ -36,6 +41,10 @@ class SafetyGate {
   /// `now`: loop clock (s); `state_time`: loop time the newest device state arrived (< 0:
   /// never). Writes the gated command to `out` (flags set: stale, clamped, fault).
   void apply(double now, double state_time, const DeviceCommand& in, DeviceCommand& out) noexcept;
+  /// The tick's tactile output, after apply() of the same tick: each vibration sample within
+  /// +-max_vibration and each pin within +-max_pin (the device's TactileCapability), non-finite
+  /// values zero, all scaled by the stale fade (gain()), as the forces are.
+  void apply_tactile(const TactileCommand& in, TactileCommand& out) noexcept;
 
   /// True if a device state that arrived at loop time `state_time` (< 0: never) is fresh at
   /// `now`: the watchdog's test, which apply() uses too.
@@ -52,6 +61,7 @@ class SafetyGate {
 
  private:
   int fingers_;
+  TactileCapability tactile_;
   double max_force_, slew_, watchdog_, ramp_, nominal_dt_;
   double last_now_ = -1.0;
   double gain_ = 0.0;

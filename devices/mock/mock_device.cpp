@@ -1,5 +1,6 @@
 #include "mock/mock_device.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -33,6 +34,10 @@ std::string MockDevice::configure() {
 std::string MockDevice::activate() {
   t0_ = -1.0;
   last_ = DeviceState{};
+  tactile_ = TactileRecord{};
+  if (info_.tactile.vibration())
+    for (int f = 0; f < info_.fingers; ++f)
+      tactile_.vibration[f].reserve(static_cast<size_t>(info_.tactile.vibration_rate * TactileRecord::kTactileRecordSeconds));
   if (!opt_.record_path.empty() && !record_.is_open())  // a new session after a deactivate
     if (std::string e = record_.open(opt_.record_path); !e.empty()) return "mock: record: " + e;
   return "";
@@ -60,6 +65,19 @@ Status MockDevice::write(double now, const DeviceCommand& cmd) noexcept {
   ++counters_.writes;
   record_.record(script_time(now), info_.fingers, last_, cmd);
   counters_.record_dropped = record_.dropped();
+  return Status::Ok;
+}
+
+Status MockDevice::write_tactile(double, const TactileCommand& cmd) noexcept {
+  ++tactile_.frames;
+  tactile_.last = cmd;
+  for (int f = 0; f < info_.fingers; ++f) {
+    std::vector<float>& v = tactile_.vibration[f];
+    const TactileFrame& fr = cmd.finger[f];
+    const size_t room = v.capacity() - v.size(), n = static_cast<size_t>(std::max(fr.samples, 0));
+    v.insert(v.end(), fr.vibration.begin(), fr.vibration.begin() + std::min(room, n));  // within the reserve
+    tactile_.dropped_samples += n - std::min(room, n);
+  }
   return Status::Ok;
 }
 

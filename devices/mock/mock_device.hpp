@@ -1,9 +1,12 @@
 // The mock two-finger device: fingertips follow a scripted trajectory on the loop clock (so it
 // runs in real time under the real-time loop and as fast as possible under a simulated clock),
-// and it records every force it receives (streamed to the device log, DeviceOptions::record_path).
+// and it records every force it receives (streamed to the device log, DeviceOptions::record_path)
+// and, with a tactile display (DeviceOptions::tactile), the tactile output in memory.
 #pragma once
 
+#include <array>
 #include <memory>
+#include <vector>
 
 #include "hal/device.hpp"
 #include "hal/options.hpp"
@@ -11,6 +14,16 @@
 #include "mock/trajectory.hpp"
 
 namespace hapticloth::devices {
+
+/// The tactile output a mock device received: every vibration sample per finger (room for
+/// kTactileRecordSeconds, made at activate; samples beyond are counted, not kept), and the last
+/// pin frame.
+struct TactileRecord {
+  static constexpr double kTactileRecordSeconds = 120.0;
+  std::uint64_t frames = 0, dropped_samples = 0;
+  std::array<std::vector<float>, kMaxFingers> vibration;
+  TactileCommand last;
+};
 
 class MockDevice final : public Device {
  public:
@@ -25,7 +38,9 @@ class MockDevice final : public Device {
   void deactivate() override;
   Status read(double now, DeviceState& state) noexcept override;
   Status write(double now, const DeviceCommand& cmd) noexcept override;
+  Status write_tactile(double now, const TactileCommand& cmd) noexcept override;
   const DeviceCounters& counters() const override { return counters_; }
+  const TactileRecord& tactile_record() const { return tactile_; }
 
   /// The streamed device log (--record): rows written, dropped.
   const DeviceLogWriter& record() const { return record_; }
@@ -42,6 +57,7 @@ class MockDevice final : public Device {
   DeviceState last_;
   DeviceCounters counters_;
   DeviceLogWriter record_;
+  TactileRecord tactile_;
 };
 
 std::unique_ptr<Device> make_mock_device(const DeviceOptions& opt);

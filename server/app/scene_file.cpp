@@ -165,10 +165,36 @@ void load_device_parts(const TomlFile& f, const toml::table& t, const std::strin
   }
 }
 
+// [device.tactile]: the device's tactile display per fingertip (hal/tactile.hpp). Absent: none.
+void load_device_tactile(const TomlFile& f, const toml::table& t, devices::DeviceOptions& d) {
+  const toml::table* tt = f.table(t, "device", "tactile", false);
+  if (!tt) return;
+  const std::string pre = "device.tactile";
+  f.only_keys(*tt, pre, {"vibration_rate", "pins", "pin_pitch", "max_vibration", "max_pin"});
+  auto& c = d.tactile;
+  c.vibration_rate = static_cast<int>(f.integer(*tt, pre, "vibration_rate", 0, 0,
+                                                static_cast<long long>(devices::kMaxTactileSamples * 1000)));
+  if (tt->get("pins")) {
+    const std::vector<double> rc = f.numbers(*tt, pre, "pins", 2, 2);
+    if (rc[0] != std::floor(rc[0]) || rc[1] != std::floor(rc[1]) || rc[0] < 1 || rc[1] < 1 ||
+        rc[0] * rc[1] > devices::kMaxPins)
+      f.fail(tt->get("pins"), pre + ".pins", "expected [rows, columns], whole numbers >= 1 with rows x columns <= " +
+                                                 std::to_string(devices::kMaxPins));
+    c.pin_rows = static_cast<int>(rc[0]);
+    c.pin_cols = static_cast<int>(rc[1]);
+  }
+  c.pin_pitch = f.number_in(*tt, pre, "pin_pitch", c.pin_pitch, 0.0, 0.05, "m", true);
+  c.max_vibration = f.number_in(*tt, pre, "max_vibration", c.max_vibration, 0.0, 0.01, "m", true);
+  c.max_pin = f.number_in(*tt, pre, "max_pin", c.max_pin, 0.0, 0.01, "m", true);
+  if (const std::string e = devices::validate(c, d.rate); !e.empty()) f.fail(tt, pre, e);
+  if (c.vibration() == false && !c.pins())
+    f.fail(tt, pre, "declares no vibration_rate and no pins: leave the table out for a device without a tactile display");
+}
+
 void load_device(const TomlFile& f, const toml::table& t, const std::string& path, Scene& s) {
   f.only_keys(t, "device", {"driver", "fingers", "workspace_min", "workspace_max", "max_force",
                             "max_stiffness", "rate", "script", "record", "replay", "udp_bind",
-                            "clock", "origin", "axes", "part"});
+                            "clock", "origin", "axes", "part", "tactile"});
   auto& d = s.device;
   s.has_device = true;
   d.driver = f.string(t, "device", "driver");
@@ -193,6 +219,7 @@ void load_device(const TomlFile& f, const toml::table& t, const std::string& pat
   d.max_force = f.number_in(t, "device", "max_force", d.max_force, 0.0, kMaxDeviceForce, "N", true);
   d.max_stiffness = f.number_in(t, "device", "max_stiffness", d.max_stiffness, 0.0, 1e6, "N/m", true);
   d.rate = f.number_in(t, "device", "rate", d.rate, 1.0, 1e5, "Hz");
+  load_device_tactile(f, t, d);
   if (t.get("script")) d.script = resolve(path, f.string(t, "device", "script"));
   if (t.get("record")) d.record_path = resolve(path, f.string(t, "device", "record"));
   if (t.get("replay")) d.replay_path = resolve(path, f.string(t, "device", "replay"));

@@ -21,6 +21,7 @@
 #include "hal/platform_timer.hpp"
 #include "haptics/local_refinement.hpp"
 #include "haptics/session.hpp"
+#include "haptics/tactile_trace.hpp"
 #include "registry.hpp"
 #include "remote/command_sink.hpp"
 #include "transport/foxglove_sink.hpp"
@@ -280,6 +281,22 @@ void attach(const Scene& scene, const ServeOptions& opt, devices::DeviceHandle& 
   hub.post_event("started", "scene " + scene.name + ", device " + dev.info().name + ", clock " + clock);
 }
 
+// With a tactile display: a trace of what each fingertip's skin got, for the summary's line on
+// whether the vibration followed the stroke (tactile_trace.hpp).
+std::unique_ptr<haptics::TactileTrace> tactile_trace(const cloth::ClothModel& model, haptics::Session& session,
+                                                     double duration) {
+  const haptics::TactileRendering* t = session.haptics().tactile();
+  if (!t) return nullptr;
+  const double rate = 1.0 / session.haptics().period();  // ticks a second
+  const devices::TactileCapability& cap = t->capability();
+  const int block = cap.vibration() ? static_cast<int>(std::lround(cap.vibration_rate / rate)) : 1;
+  auto trace = std::make_unique<haptics::TactileTrace>(model.material.surface, session.haptics().fingers(), block,
+                                                       block * rate, 1.0 / rate,
+                                                       static_cast<long>((duration + 1.0) * rate));
+  session.add_observer(trace.get());
+  return trace;
+}
+
 // Prints what runs, runs the session, and returns how a stop signal ended it ("" if none).
 std::string run(const Scene& scene, const ServeOptions& opt, const cloth::ClothModel& model,
                 const devices::DeviceHandle& dev, const Plan& p, double duration,
@@ -318,7 +335,7 @@ std::string platform_line(const devices::TimerFigures& t) {
 // transport's counters, as text or one JSON object.
 void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHandle& dev,
             const Plan& p, haptics::Session& session, const transport::Hub& hub,
-            const std::string& stopped, std::ostream& out) {
+            const haptics::TactileTrace* trace, const std::string& stopped, std::ostream& out) {
   const haptics::SessionReport r = session.report();
   const auto& dc = dev.device().counters();
   const std::string& record = scene.device.record_path;
@@ -352,6 +369,7 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
     j["gate"] = {{"non_finite", gc.non_finite}, {"clamped", gc.clamped},
                  {"slew_limited", gc.slew_limited}, {"stale_events", gc.stale_events}};
     j["integrator_events"] = ev.total();
+    if (trace) j["tactile"]["strokes"] = trace->to_json();
     j["trajectory_commands"] = {{"accepted", hs.commands_accepted}, {"rejected", hs.commands_rejected}};
     j["stopped"] = stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(stopped);
     if (const transport::FoxgloveSink* fox = hub.foxglove()) {
@@ -370,6 +388,7 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
     return;
   }
   out << r.to_text();
+  if (trace) out << trace->to_text();
   if (p.platform) out << platform_line(*p.platform);
   out << "device counters  samples " << dc.samples << ", dropped " << dc.dropped_total()
       << " (malformed " << dc.dropped_malformed << ", version " << dc.dropped_version
@@ -439,9 +458,10 @@ int serve(Scene scene, const ServeOptions& opt, std::ostream& out) {
   session.set_stop_flag(opt.stop);
   DropReporter drops;
   attach(scene, opt, dev, session, *hub, drops);
+  const auto trace = tactile_trace(model, session, duration);
   const std::string stopped = run(scene, opt, model, dev, p, duration, session, *hub, out);
   const std::string lost = hub->finish();  // everything published, the log closed, the MCAP file finished
-  report(scene, opt, dev, p, session, *hub, stopped, out);
+  report(scene, opt, dev, p, session, *hub, trace.get(), stopped, out);
   return exit_status(dev, session, lost);
 }
 

@@ -13,6 +13,7 @@
 
 #include "hal/device.hpp"
 #include "haptics/geometry.hpp"
+#include "tactile/weave_tracker.hpp"
 
 namespace hapticloth::haptics {
 
@@ -599,8 +600,10 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
 // nearest point: a cloth wrapped round the sphere is nearly as near everywhere in the patch, and
 // the nearest point jumps about in it by millimetres; nor the contacts' force-weighted centre,
 // which moves in steps as samples join and leave. The ray still wobbles with the summed normal
-// from tick to tick; a tactile channel needs a tracker that integrates the contact's slip.
-void FingertipContact::nearest_surface(int f, const std::vector<Vec3>& x, const Vec3& c, ProxyResult& r) const {
+// from tick to tick: the tactile channel's tracker integrates the slip over the cloth between
+// these anchors (tactile/weave_tracker.hpp), with the cloth's velocity and material map here.
+void FingertipContact::nearest_surface(int f, const cloth::ClothState& s, const Vec3& c, ProxyResult& r) const {
+  const std::vector<Vec3>& x = s.x;
   const Finger& F = fing_[f];
   double best = INFINITY, hit_at = INFINITY;
   int tri = -1;
@@ -630,6 +633,10 @@ void FingertipContact::nearest_surface(int f, const std::vector<Vec3>& x, const 
   const auto& uv = model_.weave_uv[static_cast<size_t>(tri)];
   r.weave_u = b[0] * uv[0][0] + b[1] * uv[1][0] + b[2] * uv[2][0];
   r.weave_v = b[0] * uv[0][1] + b[1] * uv[1][1] + b[2] * uv[2][1];
+  const auto& t = tris_[static_cast<size_t>(tri)];
+  auto corner = [&](int k) { return Eigen::Vector2d(uv[k][0], uv[k][1]); };
+  r.weave_map = tactile::weave_map(x[t[0]], x[t[1]], x[t[2]], corner(0), corner(1), corner(2));
+  r.surface_velocity = b[0] * s.v[t[0]] + b[1] * s.v[t[1]] + b[2] * s.v[t[2]];
 }
 
 void FingertipContact::end_step(const cloth::ClothState& s) {
@@ -691,13 +698,18 @@ void FingertipContact::end_step(const cloth::ClothState& s) {
     const double nn = nsum.norm();
     r.normal = nn > 0.0 ? Vec3(-nsum / nn) : Vec3::Zero();
     r.contact = fpos > 0.0 ? Vec3(csum / fpos) : P.x;
+    for (const Sample& q : F.now) {  // the patch: its farthest pressing sample from its centre, across the normal
+      if (!(q.fn > 0.0)) continue;
+      const Vec3 d = point(s.x, q.tri, q.b) - r.contact;
+      r.patch_radius = std::max(r.patch_radius, (d - d.dot(r.normal) * r.normal).norm());
+    }
     // With local refinement the fingertip sits beyond the global proxy by the compliance the
     // global mesh lacks, in series with the coupling: the step solved the proxy with the spring
     // 1 / (1/k + c), so the fingertip is where the scene's spring k alone carries the force F,
     // c F beyond the proxy (along -n in a frictionless press). Reported there, the coupling's
     // spring k (proxy - target) is F, as the passivity controller's energy balance needs.
     r.proxy = P.x - refined_c_[f] * r.force;
-    nearest_surface(f, s.x, P.x, r);
+    nearest_surface(f, s, P.x, r);
     max_pen_ = std::max(max_pen_, r.penetration);
     samples_in_contact_ += r.points;
   }

@@ -140,7 +140,7 @@ class FingertipContact final : public cloth::StepContacts {
   template <class Fn>
   void for_samples_near(int t, const std::vector<Vec3>& x, const Vec3& c, double R, Fn&& fn) const;
   Vec3 point(const std::vector<Vec3>& x, int tri, const double b[3]) const;
-  void nearest_surface(int f, const std::vector<Vec3>& x, const Vec3& c, ProxyResult& r) const;
+  void nearest_surface(int f, const cloth::ClothState& s, const Vec3& c, ProxyResult& r) const;
   void rebuild_springs();
 
   const cloth::ClothModel& model_;

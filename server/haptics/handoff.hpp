@@ -34,9 +34,14 @@ struct ProxyResult {
   double normal_force = 0.0;     ///< sum of the contacts' normal force magnitudes, N
   double friction_force = 0.0;   ///< sum of the contacts' tangential force magnitudes, N
   double penetration = 0.0;      ///< deepest cloth point inside the sphere, m
+  double patch_radius = 0.0;     ///< m: the farthest pressing contact from the contact's centre, across the normal
   /// Material coordinates (u weft, v warp), m, of the cloth's point nearest the proxy's
   /// centre: where on the fabric's surface the fingertip presses (tactile rendering).
   double weave_u = 0.0, weave_v = 0.0;
+  /// d(u, v)/dx on the cloth there (tactile::weave_map), and the cloth's velocity there (m/s):
+  /// how the fingertip's slip moves it over the fabric until the next step (tactile::WeaveTracker).
+  Eigen::Matrix<double, 2, 3> weave_map = Eigen::Matrix<double, 2, 3>::Zero();
+  Vec3 surface_velocity = Vec3::Zero();
   /// N/m: the coupling spring the step solved with (the scene's, or with local refinement the
   /// scene's in series with the compliance the global mesh lacks: LocalRefinement).
   double coupling_stiffness = 0.0;

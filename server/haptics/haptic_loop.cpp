@@ -33,6 +33,11 @@ bool HapticLoop::wind_down(double now) noexcept {
   cmd_ = devices::DeviceCommand{};
   gate_.apply(now, state_.received_time, cmd_, gated_);
   if (dev_.write(now, gated_) == devices::Status::Error) ++device_errors_;
+  if (tactile_) {  // the display falls silent with the forces
+    tactile_cmd_ = devices::TactileCommand{};
+    gate_.apply_tactile(tactile_cmd_, tactile_gated_);
+    if (dev_.write_tactile(now, tactile_gated_) == devices::Status::Error) ++device_errors_;
+  }
   last_now_ = now;
   // The report of the tick, for the session's observers (the LCM log, the MCAP): the force
   // each finger is sent, fading to zero through the gate; the contact as the last tick left it.
@@ -110,6 +115,7 @@ void HapticLoop::tick(double now) noexcept {
   if (dev_.write(now, gated_) == devices::Status::Error) ++device_errors_;
   for (int f = 0; f < fingers_; ++f) sent_[f] = map_.R * gated_.force[f];
   report_felt_forces();
+  if (tactile_) render_tactile(s, now, tick_dt);
   out_.back() = report_;
   out_.publish();
   last_now_ = now;
@@ -201,6 +207,14 @@ void HapticLoop::report_felt_forces() noexcept {
       r.force *= asked > 0.0 ? std::min(1.0, gated_.force[f].norm() / asked) : 0.0;
     }
   }
+}
+
+// What the skin feels this tick, through the same gate as the forces (its fade, the display's
+// limits), after the force is written: the force's latency comes first.
+void HapticLoop::render_tactile(const ClothSnapshot& s, double now, double tick_dt) noexcept {
+  tactile_->render(s, report_, now, tick_dt, tactile_cmd_);
+  gate_.apply_tactile(tactile_cmd_, tactile_gated_);
+  if (dev_.write_tactile(now, tactile_gated_) == devices::Status::Error) ++device_errors_;
 }
 
 }  // namespace hapticloth::haptics

@@ -2,7 +2,8 @@
 // scene (a late tick's motion caught up over the ticks it missed: late_tick.hpp), ask the
 // rendering mode's haptic half (SurfaceContact: rendering.hpp) for the force, keep the
 // multirate path's models within the energy the hand gave them (energy_bound.hpp) and each
-// coupling passive (passivity.hpp), pass the force through the safety gate, write it, and
+// coupling passive (passivity.hpp), pass the force through the safety gate, write it, render
+// the tactile output where the device has a tactile display (tactile_rendering.hpp), and
 // report the fingertips and contacts to the simulation. tick() allocates nothing and takes no
 // lock.
 #pragma once
@@ -22,6 +23,7 @@
 #include "haptics/passivity.hpp"
 #include "haptics/surface_contact.hpp"
 #include "haptics/stats.hpp"
+#include "haptics/tactile_rendering.hpp"
 
 namespace hapticloth::haptics {
 
@@ -38,6 +40,13 @@ class HapticLoop {
   HapticLoop(devices::DeviceHandle& device, devices::SafetyGate& gate, const FingerParams& finger,
              const DeviceMapping& map, std::unique_ptr<SurfaceContact> contact, Rendering mode,
              TripleBuffer<ClothSnapshot>& from_sim, TripleBuffer<HapticReport>& to_sim);
+
+  /// Set-up: the tactile half, for a device with a tactile display (none: nothing is spent).
+  void attach_tactile(std::unique_ptr<TactileRendering> t) { tactile_ = std::move(t); }
+  /// The tactile half, or nullptr.
+  const TactileRendering* tactile() const { return tactile_.get(); }
+  /// The tactile output the device was sent on the last tick (after the safety gate).
+  const devices::TactileCommand& last_tactile() const { return tactile_gated_; }
 
   /// Before the simulation's first step: reads the device and reports where its fingertips are
   /// (touching nothing, no force sent), so that the first step already has them. Without it the
@@ -61,6 +70,7 @@ class HapticLoop {
   const devices::DeviceState& device_state() const { return state_; }
   const devices::DeviceCommand& last_command() const { return gated_; }
   int fingers() const { return fingers_; }
+  double period() const { return period_; }  ///< s, the device's nominal tick
   const FingerParams& params() const { return fp_; }
   std::uint64_t device_errors() const { return device_errors_; }
   std::uint64_t contact_ticks() const { return contact_ticks_; }
@@ -91,6 +101,7 @@ class HapticLoop {
   void command(double tick_dt, const Presence& present, const std::array<Fingertip, kMaxFingers>& tips,
                const std::array<Vec3, kMaxFingers>& measured) noexcept;
   void report_felt_forces() noexcept;
+  void render_tactile(const ClothSnapshot& s, double now, double tick_dt) noexcept;
 
   devices::DeviceHandle& dev_;
   devices::SafetyGate& gate_;
@@ -106,6 +117,8 @@ class HapticLoop {
   HapticReport report_;
   std::unique_ptr<SurfaceContact> contact_;
   std::unique_ptr<EnergyBound> bound_;  // the multirate path's models only
+  std::unique_ptr<TactileRendering> tactile_;  // a device with a tactile display only
+  devices::TactileCommand tactile_cmd_, tactile_gated_;
   std::array<Vec3, kMaxFingers> sent_{};  // the forces the device holds since the last tick, scene frame
   LateTickCatchUp catch_up_;
   CouplingPassivity passivity_;

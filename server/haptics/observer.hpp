@@ -7,6 +7,7 @@
 #include "haptics/handoff.hpp"
 #include "haptics/refined_regions.hpp"
 #include "haptics/stats.hpp"
+#include "haptics/tactile_rendering.hpp"
 
 namespace hapticloth::haptics {
 
@@ -21,6 +22,9 @@ class SessionObserver {
   /// Haptic thread, after every tick: the contacts, the raw device state and the gated command.
   virtual void on_haptic_tick(const HapticReport&, const devices::DeviceState&,
                               const devices::DeviceCommand&) noexcept {}
+  /// Haptic thread, after on_haptic_tick, on a device with a tactile display: where each finger
+  /// is on the fabric and the tactile output the device was sent.
+  virtual void on_tactile(const HapticReport&, const TactileRendering&, const devices::TactileCommand&) noexcept {}
   /// Haptic thread, about once a second: the loop statistics so far.
   virtual void on_loop_stats(const LoopStats&) noexcept {}
 };

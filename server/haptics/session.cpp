@@ -65,6 +65,26 @@ Session::Session(const cloth::ClothModel& model, const cloth::IntegratorConfig& 
   loop_ = std::make_unique<HapticLoop>(dev_, *gate_, sc_.finger, sc_.mapping,
                                        make_surface_contact(mode, model, fingers, sc_.finger, patch), mode,
                                        *snap_, *rep_);
+  attach_tactile(model);
+}
+
+// The tactile half, for a device with a tactile display on a fabric with a surface.
+void Session::attach_tactile(const cloth::ClothModel& model) {
+  const devices::TactileCapability& cap = dev_.info().tactile;
+  if (!cap.any()) return;
+  if (!model.material.surface.present()) {
+    tactile_note_ = "off: the device has a tactile display, but the material has no [surface]";
+    return;
+  }
+  std::ostringstream os;
+  os << "on: ";
+  if (cap.vibration()) os << "vibration at " << cap.vibration_rate << " Hz";
+  if (cap.pins()) os << (cap.vibration() ? ", " : "") << cap.pin_rows << " x " << cap.pin_cols << " pins at "
+                     << cap.pin_pitch * 1e3 << " mm";
+  os << " per finger, from the material's [surface]";
+  tactile_note_ = os.str();
+  loop_->attach_tactile(std::make_unique<TactileRendering>(model, cap, dev_.info().fingers,
+                                                           1.0 / sc_.haptic_rate, sc_.finger.radius));
 }
 
 Session::~Session() { dev_.deactivate(); }
@@ -240,6 +260,8 @@ void Session::realtime_wind_down(long next, double t_start, double period) {
 void Session::notify_tick() noexcept {
   for (auto* o : observers_)
     o->on_haptic_tick(loop_->last_report(), loop_->device_state(), loop_->last_command());
+  if (loop_->tactile())
+    for (auto* o : observers_) o->on_tactile(loop_->last_report(), *loop_->tactile(), loop_->last_tactile());
 }
 
 SessionReport Session::report() const {
@@ -255,6 +277,13 @@ SessionReport Session::report() const {
   r.patch_candidate_overflows = sim_->patch_candidate_overflows();
   r.device_errors = loop_->device_errors();
   r.late_ticks = loop_->late_ticks();
+  r.tactile = tactile_note_;
+  if (const TactileRendering* t = loop_->tactile()) {
+    r.tactile_frames = t->counters().frames;
+    r.tactile_textured = t->counters().textured_ticks;
+    r.tactile_slips = t->counters().slip_ticks;
+    r.tactile_clamped = gate_->counters().tactile_clamped + gate_->counters().tactile_non_finite;
+  }
   r.passivity_ticks = loop_->passivity().stats().active_ticks;
   r.passivity_deficit = loop_->passivity().stats().deepest_deficit_j;
   if (const RefinementSchedule* rs = sim_->refinement()) {
@@ -315,6 +344,11 @@ std::string SessionReport::to_text() const {
   os << "late ticks       " << late_ticks << " (their motion caught up over the ticks missed); "
      << "passivity control on " << passivity_ticks << " ticks, coupling's largest deficit "
      << std::setprecision(2) << passivity_deficit * 1e6 << " uJ\n" << std::setprecision(1);
+  os << "tactile          " << tactile;
+  if (tactile_frames > 0)
+    os << "; " << tactile_frames << " ticks, texture on " << tactile_textured << " finger-ticks, the skin slipped on "
+       << tactile_slips << ", " << tactile_clamped << " samples clamped by the gate";
+  os << "\n";
   if (refinement_updates > 0)
     os << "local refinement " << refinement_builds << " children built, " << refinement_updates << " updates "
        << (refinement_beside_steps ? "beside the steps (worker thread)" : "within the steps") << "\n";
@@ -359,6 +393,8 @@ std::string SessionReport::to_json() const {
   j["contact_confirmations"] = contact_confirmations;
   j["max_penetration_m"] = max_penetration;
   j["late_ticks"] = late_ticks;
+  j["tactile"] = {{"mode", tactile}, {"frames", tactile_frames}, {"textured", tactile_textured},
+                  {"slips", tactile_slips}, {"clamped", tactile_clamped}};
   j["passivity_ticks"] = passivity_ticks;
   j["passivity_deficit_j"] = passivity_deficit;
   j["energy_bound_ticks"] = energy_bound_ticks;

@@ -68,6 +68,11 @@ struct SessionReport {
   /// child) done, within the steps or beside them (refinement_schedule.hpp).
   std::uint64_t refinement_builds = 0, refinement_updates = 0;
   bool refinement_beside_steps = false;
+  /// The tactile half (tactile_rendering.hpp): what it renders ("off" and why, when nothing),
+  /// ticks rendered, finger-ticks with texture and with a slip of the skin, and the gate's
+  /// tactile clamps.
+  std::string tactile = "off: the device declares no tactile display";
+  std::uint64_t tactile_frames = 0, tactile_textured = 0, tactile_slips = 0, tactile_clamped = 0;
   double max_force = 0.0;          ///< N, largest force sent to a finger
   double sim_time = 0.0;           ///< s of session: the haptic ticks run times the haptic period
   /// s the cloth advanced in the session (its steps times their dt). Below sim_time when the
@@ -128,6 +133,7 @@ class Session {
   void start();
   void stop();
   void account_tick();
+  void attach_tactile(const cloth::ClothModel& model);
   /// The observers see the step just taken: the refined children if they changed, then the
   /// cloth (simulation thread).
   void observe_step();
@@ -158,6 +164,7 @@ class Session {
   std::uint64_t regions_seen_ = 0;  // RefinedRegions::version the observers last saw
   const std::atomic<bool>* stop_request_ = nullptr;
   SessionReport r_;
+  std::string tactile_note_ = "off: the device declares no tactile display";
 };
 
 template <class L, class F>

@@ -21,6 +21,7 @@ void TactileParams::validate() const {
   if (!(skin_stiffness > 0.0)) fail("skin_stiffness must be > 0 N/m");
   if (!(full_force > 0.0)) fail("full_force must be > 0 N");
   if (!(full_speed > 0.0)) fail("full_speed must be > 0 m/s");
+  if (!(stretch_highpass > 0.0) || !(stretch_highpass < 0.05 * rate)) fail("stretch_highpass must be in (0, rate / 20) Hz");
   if (pin_rows < 0 || pin_cols < 0 || pin_rows * pin_cols > kMaxPins)
     fail("pin_rows x pin_cols must be in [0, " + std::to_string(kMaxPins) + "]");
   if (!(pin_pitch > 0.0)) fail("pin_pitch must be > 0 m");
@@ -34,6 +35,8 @@ TactileChannel::TactileChannel(const cloth::Surface& surface, const TactileParam
   if (block_ < 1 || block_ > kMaxBlock)
     throw std::invalid_argument("tactile: " + std::to_string(p_.rate) + " Hz gives " + std::to_string(block_) +
                                 " samples a tick, outside [1, " + std::to_string(kMaxBlock) + "]");
+  const double rc = 1.0 / (2.0 * 3.14159265358979323846 * p_.stretch_highpass), dt = 1.0 / p_.rate;
+  hp_a_ = rc / (rc + dt);
   step_ = 1e-5;
   for (const cloth::SurfaceProfile* s : {&surface_.weft, &surface_.warp})
     if (!s->empty()) step_ = std::min(step_, s->spacing());
@@ -45,7 +48,7 @@ void TactileChannel::release() noexcept { touching_ = false; }
 // is within mu f_n, else it slips along the stretch to the first place where it is back within
 // (a jump past a rise of mu is a slip event). Returns the spring's force, N.
 double TactileChannel::slide_skin(double bu, double bv, double fn) noexcept {
-  const double k = p_.skin_stiffness;
+  const double k = p_.skin_stiffness, mean_stretch = surface_.miu * fn / k;
   const double du = bu - skin_u_, dv = bv - skin_v_, r = std::hypot(du, dv);
   auto mu = [&](double a) {
     return std::max(surface_.friction(skin_u_ + a * du / r, skin_v_ + a * dv / r), 0.0);
@@ -94,23 +97,27 @@ void TactileChannel::tick(const TactileInput& in, TactileOutput& out) noexcept {
     fill_pins(in, out);
     return;
   }
-  if (!touching_) {  // first touch: no motion yet
+  const double k = p_.skin_stiffness, mean_stretch = surface_.miu * fn / k;
+  if (!touching_) {  // first touch: no motion yet, the high-pass starts settled
     touching_ = true;
     bone_u_ = skin_u_ = in.u;
     bone_v_ = skin_v_ = in.v;
+    hp_in_ = -mean_stretch;
+    hp_out_ = 0.0;
   }
   const double u0 = bone_u_, v0 = bone_v_;
   const double speed = std::hypot(in.u - u0, in.v - v0) / tick_s_;
   const double gain = std::min(fn / p_.full_force, 1.0) * std::min(speed / p_.full_speed, 1.0);
-  const double k = p_.skin_stiffness, mean_stretch = surface_.miu * fn / k;
   for (int i = 0; i < block_; ++i) {
     const double t = static_cast<double>(i + 1) / block_;
     const double su = skin_u_, sv = skin_v_;
     const double ft = slide_skin(u0 + t * (in.u - u0), v0 + t * (in.v - v0), fn);
     out.slipping = out.slipping || su != skin_u_ || sv != skin_v_;
     out.tangential_force = ft;
-    const double s = gain * (surface_.height(skin_u_, skin_v_) + ft / k - mean_stretch);
-    out.vibration[static_cast<size_t>(i)] = static_cast<float>(s);
+    const double stretch = ft / k - mean_stretch;
+    hp_out_ = hp_a_ * (hp_out_ + stretch - hp_in_);
+    hp_in_ = stretch;
+    out.vibration[static_cast<size_t>(i)] = static_cast<float>(gain * (surface_.height(skin_u_, skin_v_) + hp_out_));
   }
   bone_u_ = in.u;
   bone_v_ = in.v;

@@ -206,6 +206,20 @@ TEST_F(SceneFileTest, BadScenesNameTheFileLineAndKey) {
        {"key 'device.part[0].driver'", "streams its samples"}},
       {"OnePart", kScene + "\n[device]\ndriver = \"composite\"\n[[device.part]]\ndriver = \"udp\"\nudp_bind = \"127.0.0.1:1\"\n", 19,
        {"key 'device.part'", "2 to 5 parts"}},
+      {"TactileRateNotWholeSamplesATick", kScene + "\n[device]\ndriver = \"mock\"\n[device.tactile]\nvibration_rate = 4500\n", 19,
+       {"key 'device.tactile'", "tactile.vibration_rate 4500 Hz", "whole samples per tick"}},
+      {"TactileRateAboveAFrame", kScene + "\n[device]\ndriver = \"mock\"\n[device.tactile]\nvibration_rate = 20000\n", 20,
+       {"key 'device.tactile.vibration_rate'", "[0, 16000]"}},
+      {"TactilePinsNotTwoWholeNumbers", kScene + "\n[device]\ndriver = \"mock\"\n[device.tactile]\npins = [6.5, 4]\n", 20,
+       {"key 'device.tactile.pins'", "[rows, columns]"}},
+      {"TactilePinsTooMany", kScene + "\n[device]\ndriver = \"mock\"\n[device.tactile]\npins = [10, 10]\n", 20,
+       {"key 'device.tactile.pins'", "<= 64"}},
+      {"TactileNegativePitch", kScene + "\n[device]\ndriver = \"mock\"\n[device.tactile]\npins = [6, 4]\npin_pitch = -0.002\n", 21,
+       {"key 'device.tactile.pin_pitch'", "must be > 0 and <= 0.05 m"}},
+      {"TactileTableDeclaringNothing", kScene + "\n[device]\ndriver = \"mock\"\n[device.tactile]\nmax_pin = 0.001\n", 19,
+       {"key 'device.tactile'", "leave the table out"}},
+      {"TactileUnknownKey", kScene + "\n[device]\ndriver = \"mock\"\n[device.tactile]\nvibration_rate = 4000\npin_rows = 6\n", 21,
+       {"'device.tactile.pin_rows'"}},
       {"SizeOf1e308", with_line(kScene, 6, "size = [1e308, 1e308]"), 6, {"key 'mesh.size'", "<= 100 m"}},
       {"EmptyMaterial", with_line(kScene, 2, "material = \"\""), 2, {"key 'material'", "must name a material file"}},
       {"NameOutsideOut", with_line(kScene, 1, "name = \"../../escape\""), 1, {"key 'name'", "out/<name>.lcm"}},
@@ -270,6 +284,23 @@ TEST_F(SceneFileTest, DeviceClockKey) {
   EXPECT_FALSE(scene(kScene + "\n[device]\ndriver = \"udp\"\n").haptics.device_clock);
   EXPECT_FALSE(scene(kScene + "\n[device]\ndriver = \"udp\"\nclock = \"loop\"\n").haptics.device_clock);
   EXPECT_TRUE(scene(kScene + "\n[device]\ndriver = \"udp\"\nclock = \"device\"\n").haptics.device_clock);
+}
+
+// [device.tactile]: the display the device declares; absent, none. The main job's device has
+// HAPTEX's (vibration, 6 x 4 pins at 2 mm).
+TEST_F(SceneFileTest, DeviceTactileTable) {
+  EXPECT_FALSE(scene(kScene + "\n[device]\ndriver = \"mock\"\n").device.tactile.any());
+  const auto t = scene(kScene + "\n[device]\ndriver = \"udp\"\n[device.tactile]\nvibration_rate = 2000\npins = [3, 2]\n"
+                                "pin_pitch = 0.0025\nmax_vibration = 5e-5\nmax_pin = 2e-4\n").device.tactile;
+  EXPECT_EQ(t.vibration_rate, 2000);
+  EXPECT_EQ(t.pin_rows, 3);
+  EXPECT_EQ(t.pin_cols, 2);
+  EXPECT_DOUBLE_EQ(t.pin_pitch, 0.0025);
+  EXPECT_DOUBLE_EQ(t.max_vibration, 5e-5);
+  EXPECT_DOUBLE_EQ(t.max_pin, 2e-4);
+  const auto main = load_scene(kSourceDir + "/tools/scenes/hanging_square.toml").device.tactile;
+  EXPECT_EQ(main.vibration_rate, 4000);
+  EXPECT_EQ(main.pin_rows * main.pin_cols, 24);
 }
 
 TEST_F(SceneFileTest, ErrorInMaterialNamesTheMaterialFile) {

@@ -178,3 +178,92 @@ TEST(SafetyGate, NeverStateIsStaleAndApplyAllocatesNothing) {
   bad.slew_rate = -1;
   EXPECT_THROW(SafetyGate(two_fingers(), bad), std::invalid_argument);
 }
+
+// The tactile output passes the same gate: non-finite samples and pins become zero, values
+// beyond the display's limits are clamped (counted and flagged), all fade with the forces when
+// the device state goes stale, and a frame whose pin layout is not the display's sends no pins.
+TEST(SafetyGate, TactileOutputIsLimitedAndFadesWithTheForces) {
+  DeviceInfo info = two_fingers();
+  info.tactile.vibration_rate = 4000;
+  info.tactile.pin_rows = 2;
+  info.tactile.pin_cols = 3;
+  info.tactile.max_vibration = 50e-6;
+  info.tactile.max_pin = 0.5e-3;
+  SafetyGate g(info);
+  double t = 0.0;
+  run(g, t, 100, DeviceCommand{});  // fresh: gain 1
+  TactileCommand in, out;
+  TactileFrame& f = in.finger[0];
+  f.samples = 4;
+  f.vibration = {10e-6f, -80e-6f, std::numeric_limits<float>::quiet_NaN(), 49e-6f};
+  f.rows = 2;
+  f.cols = 3;
+  f.pins = {0.1e-3f, -0.7e-3f, 0.0f, std::numeric_limits<float>::infinity(), 0.2e-3f, 0.4e-3f};
+  g.apply_tactile(in, out);
+  const TactileFrame& o = out.finger[0];
+  ASSERT_EQ(o.samples, 4);
+  EXPECT_FLOAT_EQ(o.vibration[0], 10e-6f);
+  EXPECT_FLOAT_EQ(o.vibration[1], -50e-6f);
+  EXPECT_EQ(o.vibration[2], 0.0f);
+  EXPECT_FLOAT_EQ(o.vibration[3], 49e-6f);
+  ASSERT_EQ(o.rows * o.cols, 6);
+  EXPECT_FLOAT_EQ(o.pins[1], -0.5e-3f);
+  EXPECT_EQ(o.pins[3], 0.0f);
+  EXPECT_FLOAT_EQ(o.pins[5], 0.4e-3f);
+  EXPECT_EQ(out.flags & (kTactileClamped | kTactileFault), kTactileClamped | kTactileFault);
+  EXPECT_EQ(g.counters().tactile_clamped, 2u);
+  EXPECT_EQ(g.counters().tactile_non_finite, 2u);
+  EXPECT_EQ(out.finger[1].samples, 0);  // as its frame says
+  in.finger[2].samples = 4;
+  g.apply_tactile(in, out);
+  EXPECT_EQ(out.finger[2].samples, 0);  // beyond the device's fingers: nothing
+  in.finger[2].samples = 0;
+
+  // Stale: the output fades as the forces do, to nothing.
+  DeviceCommand force_out;
+  double last = 1.0;
+  for (int k = 0; k < 30; ++k) {
+    t += 0.001;
+    g.apply(t, -1.0, DeviceCommand{}, force_out);
+    g.apply_tactile(in, out);
+    EXPECT_LE(std::abs(out.finger[0].vibration[0]), last * 10e-6f + 1e-12f);
+    last = g.gain();
+    EXPECT_TRUE(out.flags & kTactileFaded);
+  }
+  EXPECT_EQ(out.finger[0].vibration[0], 0.0f);
+  EXPECT_EQ(out.finger[0].pins[0], 0.0f);
+
+  // A frame for another pin layout sends no pins; a display without vibration sends no samples.
+  run(g, t, 100, DeviceCommand{});
+  f.rows = 3;
+  f.cols = 2;
+  g.apply_tactile(in, out);
+  EXPECT_EQ(out.finger[0].rows * out.finger[0].cols, 0);
+  info.tactile.vibration_rate = 0;
+  SafetyGate pins_only(info);
+  pins_only.apply_tactile(in, out);
+  EXPECT_EQ(out.finger[0].samples, 0);
+}
+
+// What a device declares of its display is checked, naming the field.
+TEST(SafetyGate, RejectsATactileCapabilityItCannotDrive) {
+  DeviceInfo info = two_fingers();
+  info.tactile.vibration_rate = 4500;  // not a whole number of samples a tick at 1 kHz
+  EXPECT_NE(validate(info).find("tactile.vibration_rate"), std::string::npos);
+  info.tactile.vibration_rate = 17000;  // 17 samples a tick: more than a frame holds
+  EXPECT_NE(validate(info).find("tactile.vibration_rate"), std::string::npos);
+  info.tactile.vibration_rate = 4000;
+  info.tactile.pin_rows = 9;
+  info.tactile.pin_cols = 9;
+  EXPECT_NE(validate(info).find("tactile.pins"), std::string::npos);
+  info.tactile.pin_cols = 0;
+  EXPECT_NE(validate(info).find("tactile.pins"), std::string::npos);
+  info.tactile.pin_rows = 6;
+  info.tactile.pin_cols = 4;
+  info.tactile.max_vibration = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_NE(validate(info).find("tactile.max_vibration"), std::string::npos);
+  info.tactile.max_vibration = 1e-4;
+  EXPECT_EQ(validate(info), "");
+  info.tactile.pin_pitch = -1.0;
+  EXPECT_THROW(SafetyGate{info}, std::invalid_argument);  // the gate takes no device it cannot check
+}

@@ -81,3 +81,43 @@ TEST(MockDevice, RefusesAScriptThatJumps) {
   EXPECT_EQ(ok.configure(), "");
   fs::remove(o.script);
 }
+
+// With a tactile display the mock keeps every vibration sample it was sent, per finger, in room
+// made at activate (the tick allocates nothing), and the last frame with its pins; past the
+// room (TactileRecord::kTactileRecordSeconds) it counts the samples it could not keep.
+TEST(MockDevice, RecordsTheTactileOutputWithoutAllocating) {
+  DeviceOptions o;
+  o.tactile.vibration_rate = 2000;
+  o.tactile.pin_rows = 2;
+  o.tactile.pin_cols = 2;
+  DeviceHandle h(make_device(o));
+  ASSERT_EQ(h.configure(), "");
+  ASSERT_EQ(h.activate(), "");
+  auto& mock = static_cast<MockDevice&>(h.device());
+  TactileCommand c;
+  const long ticks = static_cast<long>(TactileRecord::kTactileRecordSeconds * 1000) + 10;
+  {
+    hapticloth::test::AllocationGuard guard;
+    for (long k = 0; k < ticks; ++k) {
+      c.finger[0].samples = c.finger[1].samples = 2;
+      c.finger[0].vibration[0] = static_cast<float>(k);
+      c.finger[0].vibration[1] = -static_cast<float>(k);
+      c.finger[1].rows = c.finger[1].cols = 2;
+      c.finger[1].pins[3] = static_cast<float>(k);
+      ASSERT_EQ(h.write_tactile(0.001 * static_cast<double>(k), c), Status::Ok);
+    }
+    EXPECT_EQ(guard.count(), 0u);
+  }
+  const TactileRecord& r = mock.tactile_record();
+  EXPECT_EQ(r.frames, static_cast<std::uint64_t>(ticks));
+  ASSERT_EQ(r.vibration[0].size(), static_cast<size_t>(2000 * TactileRecord::kTactileRecordSeconds));
+  EXPECT_EQ(r.vibration[0][2 * 1234], 1234.0f);
+  EXPECT_EQ(r.vibration[0][2 * 1234 + 1], -1234.0f);
+  EXPECT_EQ(r.dropped_samples, 2u * 2u * 10u);  // two fingers, ten ticks past the room
+  EXPECT_EQ(r.last.finger[1].pins[3], static_cast<float>(ticks - 1));
+  // Without a display: nothing kept, no room made.
+  DeviceHandle plain(make_device(DeviceOptions{}));
+  ASSERT_EQ(plain.configure(), "");
+  ASSERT_EQ(plain.activate(), "");
+  EXPECT_EQ(static_cast<MockDevice&>(plain.device()).tactile_record().vibration[0].capacity(), 0u);
+}

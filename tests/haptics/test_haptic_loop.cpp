@@ -9,7 +9,8 @@ using namespace hapticloth;
 using haptics::Vec3;
 
 // The haptic tick allocates nothing (device read/write, narrow phase, local patch or response
-// model, proxy, gate, handoff), also on the ticks after a global step's hand-over.
+// model, proxy, gate, tactile rendering, handoff), also on the ticks after a global step's
+// hand-over.
 class TickAllocation : public ::testing::TestWithParam<haptics::Rendering> {};
 
 TEST_P(TickAllocation, TickAllocatesNothing) {
@@ -19,7 +20,9 @@ TEST_P(TickAllocation, TickAllocatesNothing) {
   const bool multirate = haptics::multirate(sc.rendering);
   cloth::IntegratorConfig ic = test::sim_config(multirate ? 0.02 : 1e-3);
   // Pressing from the first tick (the script restarts when the device is reactivated).
-  test::DrumRig rig(test::drum(), test::one_finger({{0.0, Vec3(0.003, 0.002, r - 0.003)}, {1.0, Vec3(0.013, 0.002, r - 0.003)}}), sc, ic);
+  test::DrumRig rig(test::with_weave(test::drum()),
+                    test::one_finger({{0.0, Vec3(0.003, 0.002, r - 0.003)}, {1.0, Vec3(0.013, 0.002, r - 0.003)}}), sc,
+                    ic, test::tactile_device_options());
   auto& s = *rig.session;
   std::uint64_t allocs = 0, contact = 0;
   s.run_stepped(1.0, 0.0, [&](const haptics::HapticLoop&, const haptics::SimWorker&) {});
@@ -36,6 +39,8 @@ TEST_P(TickAllocation, TickAllocatesNothing) {
   }
   EXPECT_EQ(allocs, 0u);
   EXPECT_GT(contact, 400u);
+  ASSERT_NE(h.tactile(), nullptr);
+  EXPECT_GT(h.tactile()->counters().textured_ticks, 400u);
   if (GetParam() == haptics::Rendering::Patch) {
     EXPECT_GE(h.patch_rebuilds(), 1u);
   }

@@ -49,9 +49,10 @@ struct TouchRig {
   std::unique_ptr<haptics::Session> session;
   TouchRig(cloth::ClothModel m, devices::Trajectory tr, const haptics::SessionConfig& sc,
            const cloth::IntegratorConfig& ic, const cloth::ClothState& start,
-           const std::string& solver, const cloth::PcgOptions& pcg = touch_pcg())
+           const std::string& solver, const cloth::PcgOptions& pcg = touch_pcg(),
+           const devices::DeviceOptions& opt = touch_device_options())
       : model(std::move(m)),
-        dev(std::make_unique<devices::MockDevice>(touch_device_options(), std::move(tr))) {
+        dev(std::make_unique<devices::MockDevice>(opt, std::move(tr))) {
     dev.configure();
     session = std::make_unique<haptics::Session>(model, ic, cloth::make_solver(solver, pcg), start, dev, sc);
   }
@@ -600,9 +601,9 @@ struct DrumRig {
   devices::DeviceHandle dev;
   std::unique_ptr<haptics::Session> session;
   DrumRig(cloth::ClothModel m, devices::Trajectory tr, haptics::SessionConfig sc = {},
-      cloth::IntegratorConfig ic = sim_config())
+      cloth::IntegratorConfig ic = sim_config(), const devices::DeviceOptions& opt = touch_device_options())
       : model(std::move(m)),
-        dev(std::make_unique<devices::MockDevice>(touch_device_options(), std::move(tr))) {
+        dev(std::make_unique<devices::MockDevice>(opt, std::move(tr))) {
     EXPECT_EQ(dev.configure(), "");
     sc.gate.slew_rate = 1e4;
     sc.gate.ramp_time = 1e-3;
@@ -610,6 +611,31 @@ struct DrumRig {
                                                  drum_start_state(model), dev, sc);
   }
 };
+
+// ---- Tactile ---------------------------------------------------------------------------------
+
+/// The touch device with a HAPTEX-like tactile display: vibration at 4 kHz, 6 x 4 pins at 2 mm.
+inline devices::DeviceOptions tactile_device_options() {
+  devices::DeviceOptions o = touch_device_options();
+  o.tactile.vibration_rate = 4000;
+  o.tactile.pin_rows = 6;
+  o.tactile.pin_cols = 4;
+  o.tactile.pin_pitch = 0.002;
+  return o;
+}
+
+/// `m` with a sine weave: period `weft` (m) along u, `warp` along v, amplitude 10 um, friction
+/// MIU 0.3 (MMD 0.02).
+inline cloth::ClothModel with_weave(cloth::ClothModel m, double weft = 0.5e-3, double warp = 0.8e-3) {
+  cloth::Surface& s = m.material.surface;
+  s.weft = cloth::weave_profile(weft, 10e-6, cloth::WeaveShape::Sine);
+  s.warp = cloth::weave_profile(warp, 10e-6, cloth::WeaveShape::Sine);
+  s.miu = 0.3;
+  s.mmd = 0.02;
+  s.source = "test weave";
+  s.normalize_friction();
+  return m;
+}
 
 // Two fingers: finger 0 follows `f0`, finger 1 parked far from the cloth.
 inline devices::Trajectory one_finger(const std::vector<std::pair<double, Vec3>>& f0) {

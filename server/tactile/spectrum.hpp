@@ -1,12 +1,13 @@
-// The power spectrum of a short signal, shared by the tactile tests and `hapticloth-bench
-// tactile` (a plain DFT: their signals are a few thousand samples).
+// The power spectrum of a short signal, for the run's tactile summary, the tactile tests and
+// `hapticloth-bench tactile` (a plain DFT: their signals are a few thousand samples). Off the
+// real-time path.
 #pragma once
 
 #include <cmath>
 #include <complex>
 #include <vector>
 
-namespace hapticloth::test {
+namespace hapticloth::tactile {
 
 /// |X_k|^2 / N^2 of the mean-removed signal, bins 0..N/2 (Parseval: their sum over both halves
 /// is the signal's mean square).
@@ -40,4 +41,4 @@ inline std::vector<double> third_octave_bands(const std::vector<double>& p, doub
   return e;
 }
 
-}  // namespace hapticloth::test
+}  // namespace hapticloth::tactile
