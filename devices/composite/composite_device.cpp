@@ -21,6 +21,7 @@ DeviceOptions part_options(const DeviceOptions& opt, std::size_t i) {
   p.max_force = opt.max_force;
   p.max_stiffness = opt.max_stiffness;
   p.rate = opt.rate;
+  p.tactile = opt.tactile;  // each part carries its finger's display
   p.stale_after = opt.stale_after;
   p.stale_ramp = opt.stale_ramp;
   p.parts.clear();
@@ -137,6 +138,23 @@ Status CompositeDevice::write(double now, const DeviceCommand& cmd) noexcept {
   return worst;
 }
 
+// Finger i's tactile frame to part i, through the part's own gate (its fade).
+Status CompositeDevice::write_tactile(double now, const TactileCommand& cmd) noexcept {
+  Status worst = Status::Ok;
+  for (std::size_t i = 0; i < parts_.size(); ++i) {
+    Part& p = parts_[i];
+    TactileCommand one, gated;
+    one.finger[0] = cmd.finger[i];
+    one.flags = cmd.flags;
+    p.gate.apply_tactile(one, gated);
+    const Status s = p.device->write_tactile(now, gated);
+    if (s == Status::Error) worst = Status::Error;
+    else if (s == Status::NoData && worst == Status::Ok) worst = Status::NoData;
+  }
+  sum_counters();
+  return worst;
+}
+
 void CompositeDevice::sum_counters() noexcept {
   DeviceCounters c;
   for (const auto& p : parts_) {
@@ -144,6 +162,7 @@ void CompositeDevice::sum_counters() noexcept {
     c.reads += q.reads;
     c.samples += q.samples;
     c.writes += q.writes;
+    c.tactile_sent += q.tactile_sent;
     c.dropped_malformed += q.dropped_malformed;
     c.dropped_version += q.dropped_version;
     c.dropped_duplicate += q.dropped_duplicate;

@@ -30,6 +30,7 @@ class CompositeDevice final : public Device {
   void deactivate() override;
   Status read(double now, DeviceState& state) noexcept override;
   Status write(double now, const DeviceCommand& cmd) noexcept override;
+  Status write_tactile(double now, const TactileCommand& cmd) noexcept override;
   const DeviceCounters& counters() const override { return counters_; }
   int part_count() const override { return static_cast<int>(parts_.size()); }
   const Device& part(int i) const override { return *parts_[static_cast<std::size_t>(i)].device; }

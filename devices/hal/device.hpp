@@ -105,6 +105,7 @@ struct DeviceCounters {
   std::uint64_t dropped_stale = 0;    ///< newest of a read, older than the watchdog by the device's clock
   std::uint64_t dropped_other_sender = 0;  ///< from another sender than the one the session took
   std::uint64_t send_errors = 0;
+  std::uint64_t tactile_sent = 0;    ///< tactile packets sent (udp)
   std::uint64_t record_rows = 0;     ///< device-log rows written (--record; set at deactivate)
   std::uint64_t record_dropped = 0;  ///< device-log rows lost to a full buffer (--record)
   std::uint64_t dropped_total() const {

@@ -66,6 +66,7 @@ UdpDevice::UdpDevice(const DeviceOptions& opt) : opt_(opt) {
   info_.max_force = opt.max_force;
   info_.max_stiffness = opt.max_stiffness;
   info_.nominal_rate = opt.rate;
+  info_.tactile = opt.tactile;
 }
 
 UdpDevice::~UdpDevice() { close_socket(); }
@@ -262,6 +263,20 @@ bool UdpDevice::await_sample(double until) noexcept {
   return false;
 }
 
+// One datagram to the session's rig; false (counted in send_errors) if it did not go out whole,
+// `broken` if the socket will not send again.
+bool UdpDevice::send_datagram(const std::uint8_t* data, std::size_t n, bool& broken) noexcept {
+  for (int attempt = 0; attempt < 2; ++attempt) {  // one retry after EINTR
+    const ssize_t sent = ::sendto(fd_, data, n, MSG_DONTWAIT, reinterpret_cast<const sockaddr*>(&peer_), sizeof peer_);
+    if (sent == static_cast<ssize_t>(n)) return true;
+    if (sent < 0 && errno == EINTR && attempt == 0) continue;
+    ++counters_.send_errors;
+    broken = sent < 0 && !transient_send_error(errno);
+    return false;
+  }
+  return false;
+}
+
 bool UdpDevice::send_force(double now, const DeviceCommand& cmd, bool& broken) noexcept {
   udp::ForcePacket fp;
   fp.sequence = newest_.sequence;
@@ -278,15 +293,7 @@ bool UdpDevice::send_force(double now, const DeviceCommand& cmd, bool& broken) n
     }
   }
   const std::size_t n = udp::encode_force_packet(fp, tx_.data(), tx_.size());
-  for (int attempt = 0; attempt < 2; ++attempt) {  // one retry after EINTR
-    const ssize_t sent = ::sendto(fd_, tx_.data(), n, MSG_DONTWAIT,
-                                  reinterpret_cast<const sockaddr*>(&peer_), sizeof peer_);
-    if (sent == static_cast<ssize_t>(n)) break;
-    if (sent < 0 && errno == EINTR && attempt == 0) continue;
-    ++counters_.send_errors;
-    broken = sent < 0 && !transient_send_error(errno);
-    return false;
-  }
+  if (!send_datagram(tx_.data(), n, broken)) return false;
   ++counters_.writes;
   if (!recorded_newest_ && record_.is_open()) {
     DeviceCommand sent;
@@ -304,6 +311,29 @@ Status UdpDevice::write(double now, const DeviceCommand& cmd) noexcept {
   if (!have_sample_) return Status::NoData;
   bool broken = false;
   if (send_force(now, cmd, broken)) return Status::Ok;
+  return broken ? Status::Error : Status::NoData;
+}
+
+Status UdpDevice::write_tactile(double now, const TactileCommand& cmd) noexcept {
+  if (fd_ < 0) return Status::Error;
+  if (!have_sample_ || !info_.tactile.any()) return Status::NoData;
+  const TactileCapability& c = info_.tactile;
+  udp::TactilePacket tp;
+  tp.sequence = newest_.sequence;
+  tp.server_time = std::isfinite(now) ? now : 0.0;
+  tp.flags = cmd.flags;
+  tp.sample_rate = c.vibration_rate;
+  tp.fingers = info_.fingers;
+  tp.samples = c.vibration() ? static_cast<int>(std::lround(c.vibration_rate / info_.nominal_rate)) : 0;
+  tp.rows = c.pin_rows;
+  tp.cols = c.pin_cols;
+  tp.frames = cmd;
+  const std::size_t n = udp::encode_tactile_packet(tp, tactile_tx_.data(), tactile_tx_.size());
+  bool broken = false;
+  if (n > 0 && send_datagram(tactile_tx_.data(), n, broken)) {
+    ++counters_.tactile_sent;
+    return Status::Ok;
+  }
   return broken ? Status::Error : Status::NoData;
 }
 

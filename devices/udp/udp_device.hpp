@@ -74,6 +74,9 @@ class UdpDevice final : public Device {
   /// failure (counted in send_errors); Error: the socket is not open or broken. Non-finite
   /// forces are sent as zero with kFlagFault set.
   Status write(double now, const DeviceCommand& cmd) noexcept override;
+  /// Real-time path, with a tactile display declared ([device.tactile]): the tick's tactile
+  /// packet to the same peer as the force packets (proto/udp_device.md). Statuses as write().
+  Status write_tactile(double now, const TactileCommand& cmd) noexcept override;
   const DeviceCounters& counters() const override { return counters_; }
   /// The rig streams on its own clock: it can pace the loop (DeviceClock).
   bool paces_loop() const override { return true; }
@@ -94,6 +97,7 @@ class UdpDevice final : public Device {
   static bool same_sender(const sockaddr_in& a, const sockaddr_in& b) noexcept;
   void take(const udp::StatePacket& p, const sockaddr_in& from);
   bool send_force(double now, const DeviceCommand& cmd, bool& broken) noexcept;
+  bool send_datagram(const std::uint8_t* data, std::size_t n, bool& broken) noexcept;
 
   DeviceOptions opt_;
   DeviceInfo info_;
@@ -116,6 +120,7 @@ class UdpDevice final : public Device {
 
   alignas(8) std::array<std::uint8_t, 2048> rx_{};
   alignas(8) std::array<std::uint8_t, udp::kMaxForcePacketBytes> tx_{};
+  alignas(8) std::array<std::uint8_t, udp::kMaxTactilePacketBytes> tactile_tx_{};
   DeviceLogWriter record_;
 };
 

@@ -30,6 +30,7 @@ std::uint64_t load_u64(const std::uint8_t* p) {
   return std::uint64_t{load_u32(p)} | (std::uint64_t{load_u32(p + 4)} << 32);
 }
 double load_f64(const std::uint8_t* p) { return std::bit_cast<double>(load_u64(p)); }
+float load_f32(const std::uint8_t* p) { return std::bit_cast<float>(load_u32(p)); }
 Vec3 load_vec3(const std::uint8_t* p) { return {load_f64(p), load_f64(p + 8), load_f64(p + 16)}; }
 
 void store_u16(std::uint8_t* p, std::uint16_t v) {
@@ -43,6 +44,7 @@ void store_u64(std::uint8_t* p, std::uint64_t v) {
   for (int i = 0; i < 8; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
 }
 void store_f64(std::uint8_t* p, double v) { store_u64(p, std::bit_cast<std::uint64_t>(v)); }
+void store_f32(std::uint8_t* p, float v) { store_u32(p, std::bit_cast<std::uint32_t>(v)); }
 void store_vec3(std::uint8_t* p, const Vec3& v) {
   for (int k = 0; k < 3; ++k) store_f64(p + 8 * k, v[k]);
 }
@@ -148,6 +150,47 @@ ParseResult parse_force_packet(const std::uint8_t* data, std::size_t len, int ex
   return ParseResult::Ok;
 }
 
+ParseResult parse_tactile_packet(const std::uint8_t* data, std::size_t len, int expected_fingers,
+                                 TactilePacket& out) noexcept {
+  if (data == nullptr || len < 8) return ParseResult::Malformed;
+  for (int i = 0; i < 4; ++i)
+    if (data[i] != kTactileMagic[i]) return ParseResult::Malformed;
+  if (load_u16(data + 4) != kTactileVersion) return ParseResult::BadVersion;
+  if (len < kTactileHeaderBytes + kCrcBytes) return ParseResult::Malformed;
+  const int fingers = data[6], samples = data[7], rows = data[30], cols = data[31];
+  if (fingers < 1 || fingers > kMaxFingers || (expected_fingers > 0 && fingers != expected_fingers) ||
+      samples > kMaxTactileSamples || rows * cols > kMaxPins)
+    return ParseResult::Malformed;
+  const std::size_t size = tactile_packet_size(fingers, samples, rows * cols);
+  if (len != size || load_u32(data + size - kCrcBytes) != crc32(data, size - kCrcBytes)) return ParseResult::Malformed;
+  TactilePacket p;
+  p.sequence = load_u64(data + 8);
+  p.server_time = load_f64(data + 16);
+  p.flags = load_u32(data + 24);
+  p.sample_rate = load_u16(data + 28);
+  p.fingers = fingers;
+  p.samples = samples;
+  p.rows = rows;
+  p.cols = cols;
+  if (!std::isfinite(p.server_time)) return ParseResult::OutOfRange;
+  const std::uint8_t* at = data + kTactileHeaderBytes;
+  for (int f = 0; f < fingers; ++f) {
+    TactileFrame& fr = p.frames.finger[f];
+    fr.samples = samples;
+    fr.rows = rows;
+    fr.cols = cols;
+    for (int k = 0; k < samples; ++k, at += 4) fr.vibration[k] = load_f32(at);
+    for (int k = 0; k < rows * cols; ++k, at += 4) fr.pins[k] = load_f32(at);
+    for (int k = 0; k < samples; ++k)
+      if (!std::isfinite(fr.vibration[k])) return ParseResult::OutOfRange;
+    for (int k = 0; k < rows * cols; ++k)
+      if (!std::isfinite(fr.pins[k])) return ParseResult::OutOfRange;
+  }
+  p.frames.flags = p.flags;
+  out = p;
+  return ParseResult::Ok;
+}
+
 // The size of a packet of `fingers` fingers if it fits in `cap` bytes of `buf`, else 0.
 static std::size_t room_for(int fingers, const std::uint8_t* buf, std::size_t cap,
                             std::size_t (*size_of)(int)) noexcept {
@@ -180,6 +223,31 @@ std::size_t encode_force_packet(const ForcePacket& p, std::uint8_t* buf,
   store_u32(buf + 28, 0);
   for (int i = 0; i < p.fingers; ++i)
     store_vec3(buf + kForceHeaderBytes + kForceFingerBytes * i, p.force[i]);
+  store_u32(buf + size - kCrcBytes, crc32(buf, size - kCrcBytes));
+  return size;
+}
+
+std::size_t encode_tactile_packet(const TactilePacket& p, std::uint8_t* buf, std::size_t cap) noexcept {
+  if (p.fingers < 1 || p.fingers > kMaxFingers || buf == nullptr || p.samples < 0 || p.samples > kMaxTactileSamples ||
+      p.rows < 0 || p.cols < 0 || p.rows > 255 || p.cols > 255 || p.rows * p.cols > kMaxPins || p.sample_rate < 0 ||
+      p.sample_rate > 0xFFFF)
+    return 0;
+  const std::size_t size = tactile_packet_size(p.fingers, p.samples, p.rows * p.cols);
+  if (cap < size) return 0;
+  store_header(buf, kTactileMagic, p.fingers, p.sequence, p.server_time);
+  store_u16(buf + 4, kTactileVersion);
+  buf[7] = static_cast<std::uint8_t>(p.samples);
+  store_u32(buf + 24, p.flags);
+  store_u16(buf + 28, static_cast<std::uint16_t>(p.sample_rate));
+  buf[30] = static_cast<std::uint8_t>(p.rows);
+  buf[31] = static_cast<std::uint8_t>(p.cols);
+  std::uint8_t* at = buf + kTactileHeaderBytes;
+  for (int f = 0; f < p.fingers; ++f) {
+    const TactileFrame& fr = p.frames.finger[f];
+    for (int k = 0; k < p.samples; ++k, at += 4) store_f32(at, k < fr.samples ? fr.vibration[k] : 0.0f);
+    const bool pins = fr.rows == p.rows && fr.cols == p.cols;
+    for (int k = 0; k < p.rows * p.cols; ++k, at += 4) store_f32(at, pins ? fr.pins[k] : 0.0f);
+  }
   store_u32(buf + size - kCrcBytes, crc32(buf, size - kCrcBytes));
   return size;
 }

@@ -352,7 +352,7 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
     j["device_counters"] = {{"samples", dc.samples}, {"dropped", dc.dropped_total()},
                             {"dropped_backlog", dc.dropped_backlog}, {"dropped_stale", dc.dropped_stale},
                             {"dropped_other_sender", dc.dropped_other_sender},
-                            {"send_errors", dc.send_errors}};
+                            {"send_errors", dc.send_errors}, {"tactile_sent", dc.tactile_sent}};
     if (!record.empty())
       j["record"] = {{"path", record}, {"rows", dc.record_rows}, {"dropped", dc.record_dropped},
                      {"error", record_error.empty() ? nlohmann::json(nullptr) : nlohmann::json(record_error)}};
@@ -395,7 +395,8 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
       << ", duplicate " << dc.dropped_duplicate << ", reordered " << dc.dropped_reordered
       << ", out of range " << dc.dropped_out_of_range << ", queued before the session "
       << dc.dropped_backlog << ", stale " << dc.dropped_stale << ", other sender "
-      << dc.dropped_other_sender << ")\n";
+      << dc.dropped_other_sender << ")" << (dc.tactile_sent ? ", tactile packets sent " + std::to_string(dc.tactile_sent) : "")
+      << "\n";
   for (int i = 0; i < dev.device().part_count(); ++i) {  // a composite device: each part's own
     const devices::Device& part = dev.device().part(i);
     const auto& pc = part.counters();

@@ -111,6 +111,7 @@ struct ScratchDir {
 };
 
 using Controller = std::function<DeviceCommand(const DeviceState&)>;
+using TactileController = std::function<TactileCommand(const DeviceState&)>;
 
 constexpr double kSpring = 30.0;  ///< N/m
 
@@ -137,11 +138,12 @@ struct LoopRun {
 /// Runs the device loop at 1 kHz (absolute deadlines) until the rig has exited, at most
 /// max_ticks ticks, then reads once more and deactivates.
 LoopRun run_against_rig(UdpDevice& dev, RigProcess& rig, const Controller& control,
-                        int max_ticks = 12000) {
+                        int max_ticks = 12000, const TactileController& tactile = {}) {
   LoopRun run;
   run.states.reserve(static_cast<std::size_t>(max_ticks));
   DeviceState state;
   DeviceCommand cmd;
+  TactileCommand touch;
   timespec next{};
   clock_gettime(CLOCK_MONOTONIC, &next);
   for (; run.ticks < max_ticks; ++run.ticks) {
@@ -156,6 +158,10 @@ LoopRun run_against_rig(UdpDevice& dev, RigProcess& rig, const Controller& contr
     const Status st = dev.read(now, state);
     if (state.received_time >= 0.0) cmd = control(state);
     dev.write(now, cmd);
+    if (tactile) {
+      if (state.received_time >= 0.0) touch = tactile(state);
+      dev.write_tactile(now, touch);
+    }
     run.allocations += guard.count();
     if (st == Status::Ok) run.states.push_back(state);
     if (run.ticks % 20 == 0 && !rig.running()) break;
@@ -322,6 +328,73 @@ TEST(UdpFakeRig, CleanRunFollowsTheTrajectoryAndEchoesForces) {
     const bool last = i + 2 >= log.size();
     EXPECT_TRUE((r.f + kSpring * r.x).norm() < 1e-6 || (last && r.f == Vec3::Zero())) << r.time;
   }
+}
+
+// The tactile stream (proto/udp_device.md, "Tactile packet"): a display of 4 kHz vibration and
+// 6 x 4 pins on each finger. Each tick sends a force packet and a tactile packet; the rig gets as
+// many of one as of the other (but the pair its exit splits), each tactile packet intact, with
+// the samples and pin frames the driver put in, and what it logs is what was sent: the samples
+// encode the sequence they answer, the pins their place (as f32).
+TEST(UdpFakeRig, TactileStreamReachesTheRigWithMatchingCounters) {
+  ScratchDir dir("udp_tactile");
+  DeviceOptions opt = loopback_options();
+  opt.tactile.vibration_rate = 4000;
+  opt.tactile.pin_rows = 6;
+  opt.tactile.pin_cols = 4;
+  auto dev = std::make_unique<UdpDevice>(opt);
+  ASSERT_EQ(dev->configure(), "");
+  ASSERT_EQ(dev->activate(), "");
+  RigProcess rig({"--server", server_arg(*dev), "--duration", "1.0", "--tactile-log",
+                  (dir.path / "tactile.csv").string()},
+                 dir.path);
+  ASSERT_TRUE(rig.started());
+  auto frame = [](const DeviceState& s) {
+    TactileCommand c;
+    for (int f = 0; f < 2; ++f) {
+      TactileFrame& fr = c.finger[f];
+      fr.samples = 4;
+      for (int k = 0; k < 4; ++k) fr.vibration[k] = static_cast<float>(1e-6 * static_cast<double>(s.sequence) + 1e-7 * k + 1e-8 * f);
+      fr.rows = 6;
+      fr.cols = 4;
+      for (int k = 0; k < 24; ++k) fr.pins[k] = static_cast<float>(1e-5 * k + 1e-4 * f);
+    }
+    return c;
+  };
+  const LoopRun run = run_against_rig(*dev, rig, spring, 12000, frame);
+  ASSERT_TRUE(run.summary.is_object());
+  const Json& s = run.summary;
+  const auto& c = dev->counters();
+  const std::uint64_t got = s["tactile_received"], forces = s["forces_received"];
+  EXPECT_GE(got, 900u);
+  EXPECT_EQ(c.tactile_sent + 1, c.writes);  // the other write: deactivate's zero-force packet
+  EXPECT_LE(got, c.tactile_sent);  // the rig stops listening before the loop stops sending
+  EXPECT_LE(std::max(got, forces) - std::min(got, forces), 1u);
+  EXPECT_EQ(s["tactile_malformed"], 0);
+  EXPECT_EQ(s["tactile_version"], 0);
+  EXPECT_EQ(s["tactile_nonfinite"], 0);
+  EXPECT_EQ(s["tactile_rate"], 4000);
+  EXPECT_EQ(s["tactile_samples"].get<std::uint64_t>(), 2 * 4 * got);
+  EXPECT_EQ(s["tactile_pin_frames"].get<std::uint64_t>(), 2 * got);
+  EXPECT_EQ(run.allocations, 0u);
+  // The log: the rows of a packet carry the samples of the sequence it names.
+  std::ifstream in(dir.path / "tactile.csv");
+  std::string line;
+  std::getline(in, line);
+  std::uint64_t rows = 0;
+  while (std::getline(in, line)) {
+    std::stringstream ss(line);
+    std::vector<std::string> cell;
+    for (std::string x; std::getline(ss, x, ',');) cell.push_back(x);
+    ASSERT_EQ(cell.size(), 4u + 4u + 24u);
+    const double seq = std::strtod(cell[1].c_str(), nullptr), finger = std::strtod(cell[3].c_str(), nullptr);
+    if (seq > 0) {  // a packet before the first sample's answer carries zeros
+      const double v2 = 1e-6 * seq + 2e-7 + 1e-8 * finger, p23 = 23e-5 + 1e-4 * finger;
+      EXPECT_NEAR(std::strtod(cell[4 + 2].c_str(), nullptr), v2, 1e-7 * v2);
+      EXPECT_NEAR(std::strtod(cell[8 + 23].c_str(), nullptr), p23, 1e-7 * p23);
+    }
+    ++rows;
+  }
+  EXPECT_EQ(rows, 2 * got);
 }
 
 TEST(UdpFakeRig, FaultInjectionMatchesTheCounters) {

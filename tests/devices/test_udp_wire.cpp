@@ -254,3 +254,114 @@ TEST(UdpWire, OutputIsUntouchedUnlessOk) {
 }
 
 }  // namespace
+
+// --- the tactile packet ------------------------------------------------------------------------
+
+namespace {
+
+udp::TactilePacket sample_tactile() {
+  udp::TactilePacket p;
+  p.sequence = 0x0102030405060708ull;
+  p.server_time = 12.5;
+  p.flags = kTactileClamped;
+  p.sample_rate = 4000;
+  p.fingers = 2;
+  p.samples = 4;
+  p.rows = 6;
+  p.cols = 4;
+  for (int f = 0; f < 2; ++f) {
+    TactileFrame& fr = p.frames.finger[f];
+    fr.samples = 4;
+    fr.rows = 6;
+    fr.cols = 4;
+    for (int k = 0; k < 4; ++k) fr.vibration[k] = 1e-6f * static_cast<float>(k + 10 * f) - 2e-6f;
+    for (int k = 0; k < 24; ++k) fr.pins[k] = 1e-5f * static_cast<float>(k) + 1e-3f * static_cast<float>(f);
+  }
+  return p;
+}
+
+std::vector<std::uint8_t> encode_tactile(const udp::TactilePacket& p) {
+  std::vector<std::uint8_t> b(udp::kMaxTactilePacketBytes);
+  b.resize(udp::encode_tactile_packet(p, b.data(), b.size()));
+  return b;
+}
+
+ParseResult parse_tactile(const std::vector<std::uint8_t>& b, int fingers = 2) {
+  udp::TactilePacket out;
+  return udp::parse_tactile_packet(b.data(), b.size(), fingers, out);
+}
+
+}  // namespace
+
+// 32 + 4 n (samples + pins) + 4 bytes: 260 for two fingers of 4 samples and 24 pins; the fields
+// at the spec's offsets, little-endian; a round trip gives every value back bit for bit.
+TEST(UdpWire, TactilePacketLayoutAndRoundTrip) {
+  const udp::TactilePacket p = sample_tactile();
+  const std::vector<std::uint8_t> b = encode_tactile(p);
+  ASSERT_EQ(b.size(), 260u);
+  EXPECT_EQ(std::memcmp(b.data(), "HCTA", 4), 0);
+  EXPECT_EQ(b[4] | (b[5] << 8), 1);   // version
+  EXPECT_EQ(b[6], 2);                  // fingers
+  EXPECT_EQ(b[7], 4);                  // samples
+  EXPECT_EQ(b[8], 0x08);               // sequence, little-endian
+  EXPECT_EQ(b[28] | (b[29] << 8), 4000);  // sample rate
+  EXPECT_EQ(b[30], 6);
+  EXPECT_EQ(b[31], 4);
+  float v0;
+  std::memcpy(&v0, b.data() + 32, 4);
+  EXPECT_EQ(v0, p.frames.finger[0].vibration[0]);
+  float pin1_23;  // finger 1's last pin: after finger 0's 28 values and finger 1's 4 samples
+  std::memcpy(&pin1_23, b.data() + 32 + 4 * (28 + 4 + 23), 4);
+  EXPECT_EQ(pin1_23, p.frames.finger[1].pins[23]);
+  udp::TactilePacket q;
+  ASSERT_EQ(udp::parse_tactile_packet(b.data(), b.size(), 2, q), ParseResult::Ok);
+  EXPECT_EQ(q.sequence, p.sequence);
+  EXPECT_EQ(q.server_time, p.server_time);
+  EXPECT_EQ(q.flags, p.flags);
+  EXPECT_EQ(q.sample_rate, 4000);
+  for (int f = 0; f < 2; ++f) {
+    for (int k = 0; k < 4; ++k) EXPECT_EQ(q.frames.finger[f].vibration[k], p.frames.finger[f].vibration[k]);
+    for (int k = 0; k < 24; ++k) EXPECT_EQ(q.frames.finger[f].pins[k], p.frames.finger[f].pins[k]);
+  }
+  EXPECT_EQ(encode_tactile(q), b);
+}
+
+// Every truncation and extension, every single bit flip, another version, a non-finite sample, a
+// layout past the frame's room and another finger count are rejected, each with its result;
+// the encoder refuses what it cannot write.
+TEST(UdpWire, TactilePacketRejectsWhatIsNotOne) {
+  const std::vector<std::uint8_t> good = encode_tactile(sample_tactile());
+  for (std::size_t n = 0; n < good.size(); ++n)
+    EXPECT_EQ(parse_tactile(std::vector<std::uint8_t>(good.begin(), good.begin() + static_cast<long>(n))),
+              ParseResult::Malformed);
+  std::vector<std::uint8_t> longer = good;
+  longer.push_back(0);
+  EXPECT_EQ(parse_tactile(longer), ParseResult::Malformed);
+  for (std::size_t i = 0; i < good.size(); ++i)
+    for (int bit = 0; bit < 8; ++bit) {
+      std::vector<std::uint8_t> b = good;
+      b[i] ^= static_cast<std::uint8_t>(1u << bit);
+      ASSERT_NE(parse_tactile(b), ParseResult::Ok) << "byte " << i << " bit " << bit;
+    }
+  std::vector<std::uint8_t> v2 = good;
+  v2[4] = 2;
+  reseal(v2);
+  EXPECT_EQ(parse_tactile(v2), ParseResult::BadVersion);
+  EXPECT_EQ(parse_tactile(good, 3), ParseResult::Malformed);
+  udp::TactilePacket nan = sample_tactile();
+  nan.frames.finger[1].pins[5] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_EQ(parse_tactile(encode_tactile(nan)), ParseResult::OutOfRange);
+  std::vector<std::uint8_t> many = good;
+  many[7] = 17;  // samples past a frame's 16
+  reseal(many);
+  EXPECT_EQ(parse_tactile(many), ParseResult::Malformed);
+  udp::TactilePacket bad = sample_tactile();
+  bad.rows = 9;
+  bad.cols = 9;
+  EXPECT_EQ(encode_tactile(bad).size(), 0u);
+  bad = sample_tactile();
+  bad.samples = 17;
+  EXPECT_EQ(encode_tactile(bad).size(), 0u);
+  std::uint8_t small[100];
+  EXPECT_EQ(udp::encode_tactile_packet(sample_tactile(), small, sizeof small), 0u);
+}

@@ -3,7 +3,7 @@
 //
 //   fuzz_udp_packet --runs 1000000 --seed 1
 //
-// Inputs, in equal shares: random bytes; valid state or force packets (1..5 fingers, random
+// Inputs, in equal shares: random bytes; valid state, force or tactile packets (1..5 fingers, random
 // values in and around the workspace) under 1-8 mutations (bit flips, random or boundary
 // bytes, special doubles written into a field, insertions, deletions, truncations, extensions,
 // splices with another packet); half of the mutated packets get a correct CRC again so that the
@@ -22,7 +22,7 @@
 #include "udp/wire.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size);
-extern std::uint64_t g_fuzz_state_ok, g_fuzz_force_ok, g_fuzz_rejected;
+extern std::uint64_t g_fuzz_state_ok, g_fuzz_force_ok, g_fuzz_tactile_ok, g_fuzz_rejected;
 
 namespace {
 
@@ -42,8 +42,28 @@ double coordinate(Rng& rng) {
 
 Bytes valid_packet(Rng& rng) {
   const int fingers = 1 + static_cast<int>(rng() % 5);
-  Bytes b(udp::kMaxStatePacketBytes);
-  if (rng() % 2) {
+  Bytes b(udp::kMaxTactilePacketBytes);
+  const unsigned kind = rng() % 3;
+  if (kind == 2) {
+    udp::TactilePacket p;
+    p.sequence = rng();
+    p.server_time = std::uniform_real_distribution<double>(0, 1e4)(rng);
+    p.flags = static_cast<std::uint32_t>(rng() % 8);
+    p.sample_rate = 1000 * static_cast<int>(1 + rng() % 16);
+    p.fingers = fingers;
+    p.samples = static_cast<int>(rng() % 17);
+    p.rows = static_cast<int>(rng() % 9);
+    p.cols = p.rows ? static_cast<int>(rng() % (64 / p.rows + 1)) : 0;
+    for (int f = 0; f < fingers; ++f) {
+      auto& fr = p.frames.finger[f];
+      fr.samples = p.samples;
+      fr.rows = p.rows;
+      fr.cols = p.cols;
+      for (int k = 0; k < p.samples; ++k) fr.vibration[k] = static_cast<float>(coordinate(rng) * 1e-3);
+      for (int k = 0; k < p.rows * p.cols; ++k) fr.pins[k] = static_cast<float>(coordinate(rng) * 1e-2);
+    }
+    b.resize(udp::encode_tactile_packet(p, b.data(), b.size()));
+  } else if (kind == 1) {
     udp::StatePacket p;
     p.sequence = rng();
     p.device_time = std::uniform_real_distribution<double>(0, 1e4)(rng);
@@ -150,7 +170,7 @@ int main(int argc, char** argv) {
     if (kind == 0) {
       input.resize(rng() % 600);
       for (auto& c : input) c = static_cast<std::uint8_t>(rng());
-      if (rng() % 2 && input.size() >= 4) std::memcpy(input.data(), rng() % 2 ? "HCST" : "HCFC", 4);
+      if (rng() % 2 && input.size() >= 4) std::memcpy(input.data(), rng() % 3 == 0 ? "HCST" : rng() % 2 ? "HCFC" : "HCTA", 4);
     } else {
       input = valid_packet(rng);
       if (kind != 3) {
@@ -164,10 +184,11 @@ int main(int argc, char** argv) {
   }
   std::printf(
       "{\"runs\": %llu, \"crashes\": 0, \"seed\": %llu, \"state_ok\": %llu, \"force_ok\": %llu, "
-      "\"rejected\": %llu}\n",
+      "\"tactile_ok\": %llu, \"rejected\": %llu}\n",
       static_cast<unsigned long long>(runs), static_cast<unsigned long long>(seed),
       static_cast<unsigned long long>(g_fuzz_state_ok),
       static_cast<unsigned long long>(g_fuzz_force_ok),
+      static_cast<unsigned long long>(g_fuzz_tactile_ok),
       static_cast<unsigned long long>(g_fuzz_rejected));
   return 0;
 }

@@ -16,7 +16,7 @@ using hapticloth::devices::Box;
 using hapticloth::devices::kMaxFingers;
 
 /// Decoder outcomes so far (read by the standalone driver).
-std::uint64_t g_fuzz_state_ok = 0, g_fuzz_force_ok = 0, g_fuzz_rejected = 0;
+std::uint64_t g_fuzz_state_ok = 0, g_fuzz_force_ok = 0, g_fuzz_tactile_ok = 0, g_fuzz_rejected = 0;
 
 namespace {
 
@@ -82,6 +82,31 @@ void force_target(const std::uint8_t* data, std::size_t size, int expected) {
     check(std::memcmp(again, data, size) == 0, "re-encoded bytes");
 }
 
+void tactile_target(const std::uint8_t* data, std::size_t size, int expected) {
+  udp::TactilePacket p;
+  p.fingers = -7;
+  const udp::ParseResult r = udp::parse_tactile_packet(data, size, expected, p);
+  count(r, g_fuzz_tactile_ok);
+  if (r != udp::ParseResult::Ok) {
+    check(p.fingers == -7, "output untouched on failure");
+    return;
+  }
+  check(p.fingers >= 1 && p.fingers <= kMaxFingers, "tactile finger count in range");
+  check(expected <= 0 || p.fingers == expected, "tactile finger count as expected");
+  check(p.samples >= 0 && p.samples <= hapticloth::devices::kMaxTactileSamples, "samples in range");
+  check(p.rows * p.cols <= hapticloth::devices::kMaxPins, "pins in range");
+  check(size == udp::tactile_packet_size(p.fingers, p.samples, p.rows * p.cols), "tactile size");
+  check(std::isfinite(p.server_time), "finite server_time");
+  for (int f = 0; f < p.fingers; ++f) {
+    const auto& fr = p.frames.finger[f];
+    for (int k = 0; k < p.samples; ++k) check(std::isfinite(fr.vibration[k]), "finite sample");
+    for (int k = 0; k < p.rows * p.cols; ++k) check(std::isfinite(fr.pins[k]), "finite pin");
+  }
+  std::uint8_t again[udp::kMaxTactilePacketBytes];
+  check(udp::encode_tactile_packet(p, again, sizeof again) == size, "tactile re-encoded size");
+  check(std::memcmp(again, data, size) == 0, "tactile re-encoded bytes");  // no reserved field
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -93,6 +118,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   for (int expected : {2, claimed, 0}) {
     state_target(data, size, expected, kDefault);
     force_target(data, size, expected);
+    tactile_target(data, size, expected);
   }
   state_target(data, size, claimed, kFlat);
   return 0;
