@@ -111,6 +111,52 @@ void fill(const HapticSample* samples, int n, int fingers, hapticloth::haptic_st
   }
 }
 
+void fill(const TactileSample* samples, int n, int fingers, const TactileLayout& layout,
+          hapticloth::tactile_state_t& m) {
+  m.utime = wall_utime();
+  m.num_ticks = n;
+  m.num_fingers = fingers;
+  m.samples_per_tick = layout.samples;
+  m.rows = layout.rows;
+  m.cols = layout.cols;
+  m.num_pins = layout.rows * layout.cols;
+  m.sample_rate = layout.sample_rate;
+  m.pin_pitch = layout.pin_pitch;
+  m.time.resize(n);
+  m.tick.resize(n);
+  m.flags.resize(n);
+  auto per_finger = [&](auto& field, int inner) {
+    field.resize(n);
+    for (auto& a : field) {
+      a.resize(fingers);
+      if constexpr (requires { a[0].resize(0); })
+        for (auto& b : a) b.resize(inner);
+    }
+  };
+  per_finger(m.vibration, layout.samples);
+  per_finger(m.pins, m.num_pins);
+  per_finger(m.u, 0);
+  per_finger(m.v, 0);
+  per_finger(m.normal_force, 0);
+  per_finger(m.touching, 0);
+  for (int k = 0; k < n; ++k) {
+    const TactileSample& s = samples[k];
+    m.time[k] = s.time;
+    m.tick[k] = static_cast<int64_t>(s.tick);
+    m.flags[k] = static_cast<std::int32_t>(s.out.flags);
+    for (int f = 0; f < fingers; ++f) {
+      const devices::TactileFrame& fr = s.out.finger[f];
+      for (int i = 0; i < layout.samples; ++i) m.vibration[k][f][i] = i < fr.samples ? fr.vibration[i] : 0.0f;
+      const bool pins = fr.rows == layout.rows && fr.cols == layout.cols;
+      for (int i = 0; i < m.num_pins; ++i) m.pins[k][f][i] = pins ? fr.pins[i] : 0.0f;
+      m.u[k][f] = s.u[f];
+      m.v[k][f] = s.v[f];
+      m.normal_force[k][f] = s.normal_force[f];
+      m.touching[k][f] = s.touching[f];
+    }
+  }
+}
+
 std::string to_device_command(const hapticloth::trajectory_cmd_t& m, const SceneInfo& info,
                               devices::TrajectoryCommand& out) {
   if (m.frame != hapticloth::trajectory_cmd_t::FRAME_DEVICE &&

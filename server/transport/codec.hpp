@@ -19,6 +19,7 @@
 #include "hapticloth/haptic_state_t.hpp"
 #include "hapticloth/loop_stats_t.hpp"
 #include "hapticloth/scene_info_t.hpp"
+#include "hapticloth/tactile_state_t.hpp"
 #include "hapticloth/scene_request_t.hpp"
 #include "hapticloth/trajectory_cmd_t.hpp"
 
@@ -36,6 +37,21 @@ struct HapticSample {
   std::array<bool, devices::kMaxFingers> contact{}, slipping{};
 };
 
+/// One tick of the tactile output as the haptic loop hands it to the publisher.
+struct TactileSample {
+  double time = 0.0;
+  std::uint64_t tick = 0;
+  devices::TactileCommand out;  ///< after the safety gate (flags: its tactile flags)
+  std::array<float, devices::kMaxFingers> u{}, v{}, normal_force{};
+  std::array<bool, devices::kMaxFingers> touching{};
+};
+
+/// What a tactile_state_t says of the display, fixed for a session.
+struct TactileLayout {
+  int samples = 0, rows = 0, cols = 0, sample_rate = 0;
+  float pin_pitch = 0.0f;
+};
+
 /// Loop statistics reduced to what loop_stats_t carries (cheap to compute on the haptic thread:
 /// the quantile scans stop at the first bins that reach them).
 struct LoopSummary {
@@ -49,6 +65,9 @@ void fill(const SceneInfo& info, hapticloth::cloth_topology_t& m);
 void fill(const LoopSummary& s, hapticloth::loop_stats_t& m);
 /// `samples[0..n)`, `fingers` per sample.
 void fill(const HapticSample* samples, int n, int fingers, hapticloth::haptic_state_t& m);
+/// `samples[0..n)`, `fingers` per sample, of a display laid out as `layout`.
+void fill(const TactileSample* samples, int n, int fingers, const TactileLayout& layout,
+          hapticloth::tactile_state_t& m);
 
 /// A trajectory command in the device frame. Returns "" or why it cannot be converted.
 std::string to_device_command(const hapticloth::trajectory_cmd_t& m, const SceneInfo& info,

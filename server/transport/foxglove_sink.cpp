@@ -11,6 +11,7 @@
 #include "hapticloth/cloth_state_t.hpp"
 #include "hapticloth/cloth_topology_t.hpp"
 #include "hapticloth/event_t.hpp"
+#include "hapticloth/tactile_state_t.hpp"
 #include "hapticloth/haptic_state_t.hpp"
 #include "hapticloth/loop_stats_t.hpp"
 #include "hapticloth/scene_info_t.hpp"
@@ -65,6 +66,20 @@ std::string haptics_schema() {
   return j.dump();
 }
 
+std::string tactile_schema() {
+  const nlohmann::json finger = object_schema({{"vibration_rms", number_schema("m, over the message's ticks")},
+                                               {"vibration", {{"type", "array"}, {"items", number_schema("m")}}},
+                                               {"u", number_schema("m, along the weft")},
+                                               {"v", number_schema("m, along the warp")},
+                                               {"normal_force", number_schema("N")},
+                                               {"touching", {{"type", "boolean"}}}});
+  nlohmann::json j = object_schema({{"time", number_schema("s, loop clock")},
+                                    {"tick", {{"type", "integer"}}},
+                                    {"fingers", {{"type", "array"}, {"items", finger}}}});
+  j["$schema"] = "https://json-schema.org/draft/2020-12/schema";
+  return j.dump();
+}
+
 std::string loop_schema() {
   nlohmann::json j = object_schema({{"ticks", {{"type", "integer"}}},
                                     {"missed_deadlines", {{"type", "integer"}}},
@@ -109,6 +124,10 @@ bool counts_fit(Topic t, const std::uint8_t* b, std::size_t len) {
       const std::int64_t n = be32(b, len, 16), f = be32(b, len, 20);
       return fits(n, 16) && fits(f, 1) && fits(n * f, 60);
     }
+    case Topic::Tactile: {  // utime; ticks, fingers, samples, rows, cols, pins; double time[n], ...
+      const std::int64_t n = be32(b, len, 16), f = be32(b, len, 20), sm = be32(b, len, 24), p = be32(b, len, 36);
+      return fits(n, 16) && fits(f, 1) && fits(n * f, 13) && fits(n * f * sm, 4) && fits(n * f * p, 4);
+    }
     default: return true;  // strings first: LCM checks each string's length against the bytes
   }
 }
@@ -130,7 +149,8 @@ void parse_host_port(const std::string& s, const std::string& what, std::string&
 }
 
 const char* FoxgloveSink::channel_name(Channel c) {
-  static const char* const kNames[kChannels] = {"/cloth", "/fingertips", "/haptics", "/loop", "/events"};
+  static const char* const kNames[kChannels] = {"/cloth", "/fingertips", "/haptics", "/loop", "/events",
+                                                "/tactile", "/tactile/pins"};
   return kNames[c];
 }
 
@@ -144,9 +164,10 @@ FoxgloveSink::FoxgloveSink(const FoxgloveOptions& opt) : opt_(opt) {
     throw FoxgloveOpenError("foxglove: cannot open " +
                              std::string(opt.live.empty() ? "--mcap " + opt.mcap : "--foxglove " + opt.live) +
                              ": " + bridge_error());
-  const std::string hs = haptics_schema(), ls = loop_schema();
+  const std::string hs = haptics_schema(), ls = loop_schema(), ts = tactile_schema();
   if (hf_declare_json(sink_, HF_JSON_HAPTICS, "hapticloth.Haptics", hs.c_str()) != 0 ||
-      hf_declare_json(sink_, HF_JSON_LOOP, "hapticloth.LoopStats", ls.c_str()) != 0) {
+      hf_declare_json(sink_, HF_JSON_LOOP, "hapticloth.LoopStats", ls.c_str()) != 0 ||
+      hf_declare_json(sink_, HF_JSON_TACTILE, "hapticloth.Tactile", ts.c_str()) != 0) {
     const std::string e = bridge_error();
     hf_close(sink_);
     sink_ = nullptr;
@@ -178,6 +199,7 @@ bool FoxgloveSink::wants(Topic t) const {
     case Topic::Haptics: return hf_wants(sink_, HF_HAPTICS) || hf_wants(sink_, HF_FINGERTIPS);
     case Topic::Stats: return hf_wants(sink_, HF_LOOP);
     case Topic::Events: return hf_wants(sink_, HF_EVENTS);
+    case Topic::Tactile: return hf_wants(sink_, HF_TACTILE) || hf_wants(sink_, HF_TACTILE_PINS);
   }
   return false;
 }
@@ -214,6 +236,7 @@ void FoxgloveSink::send(Topic t, const std::uint8_t* bytes, std::size_t len, std
     case Topic::Haptics: haptics(bytes, len, ns); break;
     case Topic::Stats: loop(bytes, len, ns); break;
     case Topic::Events: event(bytes, len, ns); break;
+    case Topic::Tactile: tactile(bytes, len, ns); break;
   }
 }
 
@@ -367,6 +390,48 @@ void FoxgloveSink::haptics(const std::uint8_t* bytes, std::size_t len, std::uint
   const std::string j = nlohmann::json{{"time", m.time[k]}, {"tick", m.tick[k]}, {"fingers", fingers}}.dump();
   hf_json(sink_, HF_JSON_HAPTICS, ns, reinterpret_cast<const std::uint8_t*>(j.data()), j.size());
   ++written_[Haptics];
+}
+
+// /tactile: per finger the vibration's RMS over the message's ticks (about 100 Hz: a plot of
+// the texture's strength), its last block, and where on the fabric the finger is; /tactile/pins:
+// the last tick's pin frames side by side, kPinPixels pixels a pin, mid-grey level, +-kPinScale
+// m to white and black.
+void FoxgloveSink::tactile(const std::uint8_t* bytes, std::size_t len, std::uint64_t ns) {
+  hapticloth::tactile_state_t m{};
+  if (!decode(bytes, len, m) || m.num_ticks < 1 || m.num_fingers < 1) return;
+  const int k = m.num_ticks - 1, nf = m.num_fingers;
+  nlohmann::json fingers = nlohmann::json::array();
+  for (int f = 0; f < nf; ++f) {
+    double ss = 0.0;
+    for (int t = 0; t < m.num_ticks; ++t)
+      for (float x : m.vibration[t][f]) ss += static_cast<double>(x) * x;
+    const double n = static_cast<double>(m.num_ticks) * std::max(1, m.samples_per_tick);
+    fingers.push_back({{"vibration_rms", std::sqrt(ss / n)},
+                       {"vibration", m.vibration[k][f]},
+                       {"u", m.u[k][f]},
+                       {"v", m.v[k][f]},
+                       {"normal_force", m.normal_force[k][f]},
+                       {"touching", static_cast<bool>(m.touching[k][f])}});
+  }
+  const std::string j = nlohmann::json{{"time", m.time[k]}, {"tick", m.tick[k]}, {"fingers", fingers}}.dump();
+  hf_json(sink_, HF_JSON_TACTILE, ns, reinterpret_cast<const std::uint8_t*>(j.data()), j.size());
+  ++written_[Tactile];
+  if (m.num_pins < 1 || m.rows < 1 || m.cols < 1 || m.rows * m.cols != m.num_pins) return;
+  constexpr int kPinPixels = 8;
+  constexpr double kPinScale = 50e-6;
+  const int w = nf * m.cols * kPinPixels + (nf - 1) * kPinPixels, h = m.rows * kPinPixels;
+  std::vector<std::uint8_t> grey(static_cast<std::size_t>(w) * h, 0);
+  for (int f = 0; f < nf; ++f)
+    for (int i = 0; i < m.rows; ++i)
+      for (int jc = 0; jc < m.cols; ++jc) {
+        const double z = std::clamp(m.pins[k][f][i * m.cols + jc] / kPinScale, -1.0, 1.0);
+        const auto level = static_cast<std::uint8_t>(std::lround(127.5 + 127.5 * z));
+        const int x0 = (f * (m.cols + 1) + jc) * kPinPixels, y0 = i * kPinPixels;
+        for (int y = 0; y < kPinPixels; ++y)
+          std::fill_n(grey.begin() + static_cast<long>((y0 + y) * w + x0), kPinPixels, level);
+      }
+  hf_pins(sink_, ns, static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h), grey.data());
+  ++written_[TactilePins];
 }
 
 void FoxgloveSink::loop(const std::uint8_t* bytes, std::size_t len, std::uint64_t ns) {

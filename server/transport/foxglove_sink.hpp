@@ -11,10 +11,13 @@
 //   /haptics     JSON                  per finger: force, position, proxy, contact, slip
 //   /loop        JSON                  the haptic loop's statistics (loop_stats_t)
 //   /events      foxglove.Log          the events (kind, text)
+//   /tactile     JSON                  per finger: the vibration's RMS and last block, where on
+//                                      the fabric (u, v), normal force (a tactile display only)
+//   /tactile/pins foxglove.RawImage    the pin frames, side by side (mono8, mid-grey level)
 //
 // One message per LCM message: /cloth per cloth_state_t, /fingertips and /haptics per
 // haptic_state_t batch (its last sample: about 100 Hz, fit for plots), /loop per
-// loop_stats_t, /events per event_t. Not thread-safe: the Hub's publisher thread calls it.
+// loop_stats_t, /events per event_t, /tactile and /tactile/pins per tactile_state_t batch. Not thread-safe: the Hub's publisher thread calls it.
 #pragma once
 
 #include <array>
@@ -52,7 +55,7 @@ struct FoxgloveOpenError : std::runtime_error {
 
 class FoxgloveSink {
  public:
-  enum Channel { Cloth, Fingertips, Haptics, Loop, Events, kChannels };
+  enum Channel { Cloth, Fingertips, Haptics, Loop, Events, Tactile, TactilePins, kChannels };
 
   /// Throws FoxgloveOpenError naming the address or file that cannot be opened.
   explicit FoxgloveSink(const FoxgloveOptions& opt);
@@ -83,6 +86,7 @@ class FoxgloveSink {
   void cloth(const std::uint8_t* bytes, std::size_t len, std::uint64_t ns);
   void haptics(const std::uint8_t* bytes, std::size_t len, std::uint64_t ns);
   void loop(const std::uint8_t* bytes, std::size_t len, std::uint64_t ns);
+  void tactile(const std::uint8_t* bytes, std::size_t len, std::uint64_t ns);
   void event(const std::uint8_t* bytes, std::size_t len, std::uint64_t ns);
   void strain_colours(const std::vector<std::vector<float>>& x, std::size_t first,
                       const std::vector<cloth::ElementRest>& rest, const std::vector<bool>& degenerate);

@@ -24,7 +24,7 @@ Hub::Hub(const TransportOptions& opt, SceneInfo scene)
       scene_(std::move(scene)),
       messages_(opt_, scene_),
       commands_(scene_, opt_.max_command_speed, events_, !opt_.lcm_log.empty()),
-      loops_(scene_.rest_positions.size(), scene_.device.fingers, opt_.cloth_rate),
+      loops_(scene_.rest_positions.size(), scene_.device, opt_.cloth_rate),
       transports_(opt_, HubTransports::Inputs{
                             [this](const std::uint8_t* d, std::size_t n) { commands_.on_bytes(d, n, live_.load()); },
                             [this] { if (live_.load()) messages_.request(); },
@@ -54,6 +54,11 @@ void Hub::on_haptic_tick(const haptics::HapticReport& r, const devices::DeviceSt
 
 void Hub::on_loop_stats(const haptics::LoopStats& s) noexcept { loops_.put_stats(s); }
 
+void Hub::on_tactile(const haptics::HapticReport& r, const haptics::TactileRendering& t,
+                     const devices::TactileCommand& out) noexcept {
+  loops_.put_tactile(r, t, out);
+}
+
 HubStats Hub::stats() const {
   HubStats s;
   for (int t = 0; t < kTopics; ++t) {
@@ -63,6 +68,7 @@ HubStats Hub::stats() const {
   s.commands_accepted = commands_.accepted();
   s.commands_rejected = commands_.rejected();
   s.haptic_samples_dropped = loops_.samples_dropped();
+  s.tactile_samples_dropped = loops_.tactile_dropped();
   s.watchdog_trips = loops_.watchdog_trips();
   s.nan_forces = loops_.nan_forces();
   return s;

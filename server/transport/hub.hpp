@@ -10,6 +10,8 @@
 //   events     hapticloth/<server>/events      HAPTICLOTH_EVENTS        event_t
 //   scene      hapticloth/<server>/scene       HAPTICLOTH_SCENE         scene_info_t (start, request;
 //                                                                       zenoh: also a queryable)
+//   tactile    hapticloth/<server>/tactile     HAPTICLOTH_TACTILE       tactile_state_t (every haptic_batch;
+//                                                                       a device with a tactile display)
 // Inputs:
 //   trajectory hapticloth/<server>/trajectory  HAPTICLOTH_TRAJECTORY    trajectory_cmd_t
 //   -                                          HAPTICLOTH_SCENE_REQUEST scene_request_t
@@ -52,6 +54,7 @@ struct HubStats {
   std::array<std::uint64_t, kTopics> skipped{};    ///< not encoded: nobody could receive them
   std::uint64_t commands_accepted = 0, commands_rejected = 0;
   std::uint64_t haptic_samples_dropped = 0;        ///< ring full (publisher behind)
+  std::uint64_t tactile_samples_dropped = 0;       ///< the same, tactile ticks
   std::uint64_t watchdog_trips = 0, nan_forces = 0;
 };
 
@@ -72,6 +75,8 @@ class Hub : public haptics::SessionObserver {
   void on_haptic_tick(const haptics::HapticReport& r, const devices::DeviceState& state,
                       const devices::DeviceCommand& cmd) noexcept override;
   void on_loop_stats(const haptics::LoopStats& s) noexcept override;
+  void on_tactile(const haptics::HapticReport& r, const haptics::TactileRendering& t,
+                  const devices::TactileCommand& out) noexcept override;
 
   /// Any thread but the real-time ones. Publishes an event_t (kind, text, the counters).
   void post_event(const std::string& kind, const std::string& text) { events_.post(kind, text); }

@@ -13,6 +13,7 @@ HubPublisher::HubPublisher(const TransportOptions& opt, SceneMessages& scene, Lo
                            HubEvents& events, const CommandIntake& commands, HubTransports& out)
     : scene_(scene), loops_(loops), events_(events), commands_(commands), out_(out) {
   batch_.reserve(LoopMailboxes::kSamples);
+  if (loops_.has_tactile()) tactile_batch_.reserve(LoopMailboxes::kTactileSamples);
   const double period = std::clamp(std::min(opt.haptic_batch, 1.0 / opt.cloth_rate), 1e-3, 0.1);
   thread_ = std::thread([this, period] { run(period); });
 }
@@ -65,6 +66,7 @@ void HubPublisher::publish_pending() {
   if (scene_.take_request()) publish_scene();
   publish_cloth();
   publish_haptics();
+  publish_tactile();
   publish_stats();
   // Faults the haptic loop counted: one event per new batch of them.
   events_.post_faults(loops_.watchdog_trips(), loops_.nan_forces());
@@ -126,6 +128,18 @@ void HubPublisher::publish_haptics() {
     const int n = static_cast<int>(std::min<std::size_t>(kMaxSamplesPerMessage, batch_.size() - k));
     fill(batch_.data() + k, n, loops_.fingers(), haptic_msg_);
     send_msg(Topic::Haptics, haptic_msg_);
+  }
+}
+
+void HubPublisher::publish_tactile() {
+  if (!loops_.has_tactile()) return;
+  tactile_batch_.clear();
+  loops_.take_tactile(tactile_batch_);
+  for (std::size_t k = 0; k < tactile_batch_.size(); k += kMaxSamplesPerMessage) {
+    if (!out_.admit(Topic::Tactile)) continue;
+    const int n = static_cast<int>(std::min<std::size_t>(kMaxSamplesPerMessage, tactile_batch_.size() - k));
+    fill(tactile_batch_.data() + k, n, loops_.fingers(), loops_.tactile_layout(), tactile_msg_);
+    send_msg(Topic::Tactile, tactile_msg_);
   }
 }
 

@@ -40,6 +40,7 @@ class HubPublisher {
   void publish_cloth();
   void fill_refined(const LoopMailboxes::ClothFrame& f);
   void publish_haptics();
+  void publish_tactile();
   void publish_stats();
   void publish_events();
   template <class M>
@@ -54,8 +55,10 @@ class HubPublisher {
   // Publisher thread only.
   std::vector<std::uint8_t> buf_;
   std::vector<HapticSample> batch_;
+  std::vector<TactileSample> tactile_batch_;
   hapticloth::cloth_state_t cloth_msg_;
   hapticloth::haptic_state_t haptic_msg_;
+  hapticloth::tactile_state_t tactile_msg_;
   std::deque<HubEvents::Event> events_out_;
   std::deque<std::vector<std::uint8_t>> commands_out_;
 

@@ -1,6 +1,7 @@
 #include "transport/loop_mailboxes.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace hapticloth::transport {
 
@@ -14,14 +15,48 @@ LoopMailboxes::ClothFrame sized_frame(std::size_t vertices) {
   f.x.resize(vertices);
   return f;
 }
+
+TactileLayout layout_of(const devices::DeviceInfo& d) {
+  const devices::TactileCapability& c = d.tactile;
+  TactileLayout l;
+  l.samples = c.vibration() ? static_cast<int>(std::lround(c.vibration_rate / d.nominal_rate)) : 0;
+  l.rows = c.pin_rows;
+  l.cols = c.pin_cols;
+  l.sample_rate = c.vibration_rate;
+  l.pin_pitch = static_cast<float>(c.pin_pitch);
+  return l;
+}
 }  // namespace
 
-LoopMailboxes::LoopMailboxes(std::size_t vertices, int fingers, double cloth_rate)
-    : fingers_(fingers),
+LoopMailboxes::LoopMailboxes(std::size_t vertices, const devices::DeviceInfo& device, double cloth_rate)
+    : fingers_(device.fingers),
       cloth_period_(1.0 / cloth_rate),
       cloth_(sized_frame(vertices)),
       stats_(LoopSummary{}),
-      samples_(kSamples) {}
+      samples_(kSamples),
+      layout_(layout_of(device)),
+      tactile_(device.tactile.any() ? kTactileSamples : 1) {}
+
+void LoopMailboxes::put_tactile(const haptics::HapticReport& r, const haptics::TactileRendering& t,
+                                const devices::TactileCommand& out) noexcept {
+  TactileSample s;
+  s.time = r.time;
+  s.tick = r.tick;
+  s.out = out;
+  for (int f = 0; f < fingers_; ++f) {
+    const haptics::TactilePlace& p = t.place(f);
+    s.u[f] = static_cast<float>(p.u);
+    s.v[f] = static_cast<float>(p.v);
+    s.normal_force[f] = static_cast<float>(p.normal_force);
+    s.touching[f] = p.touching;
+  }
+  if (!tactile_.push(s)) tactile_dropped_.fetch_add(1, std::memory_order_relaxed);
+}
+
+void LoopMailboxes::take_tactile(std::vector<TactileSample>& out) {
+  TactileSample s;
+  while (out.size() < out.capacity() && tactile_.pop(s)) out.push_back(s);
+}
 
 void LoopMailboxes::put_refined(const haptics::RefinedRegions& r) noexcept {
   try {

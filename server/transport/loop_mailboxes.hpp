@@ -1,6 +1,6 @@
 // What the session's loops hand the Hub's publisher thread: the newest cloth frame (at most
 // cloth_rate a second) and the newest loop statistics through triple buffers, every haptic
-// sample through a ring, and counts of the faults the haptic loop flagged. The loop side copies
+// sample and (with a tactile display) every tick's tactile output through rings, and counts of the faults the haptic loop flagged. The loop side copies
 // into storage allocated here: no lock, no allocation.
 #pragma once
 
@@ -45,9 +45,11 @@ class LoopMailboxes {
     std::vector<std::int32_t> refined_region;
   };
   static constexpr std::size_t kSamples = 4096;  ///< haptic samples the ring holds (4 s at 1 kHz)
+  static constexpr std::size_t kTactileSamples = 1024;  ///< tactile ticks the ring holds (1 s at 1 kHz)
 
-  /// Set-up: frames of `vertices` vertices, samples of `fingers` fingers.
-  LoopMailboxes(std::size_t vertices, int fingers, double cloth_rate);
+  /// Set-up: frames of `vertices` vertices, samples of `device.fingers` fingers; room for the
+  /// tactile output only if the device declares a display.
+  LoopMailboxes(std::size_t vertices, const devices::DeviceInfo& device, double cloth_rate);
 
   // The loops' side (one writer each: the simulation thread, the haptic thread).
   void put_cloth(const haptics::ClothSnapshot& s) noexcept;
@@ -57,6 +59,8 @@ class LoopMailboxes {
   void put_tick(const haptics::HapticReport& r, const devices::DeviceState& state,
                 const devices::DeviceCommand& cmd) noexcept;
   void put_stats(const haptics::LoopStats& s) noexcept;
+  void put_tactile(const haptics::HapticReport& r, const haptics::TactileRendering& t,
+                   const devices::TactileCommand& out) noexcept;
 
   // The publisher's side.
   /// The newest cloth frame if one came since the last call, else nullptr.
@@ -66,10 +70,15 @@ class LoopMailboxes {
   /// Appends the samples waiting, oldest first, up to `out`'s capacity (so never allocates
   /// once it is reserved).
   void take_samples(std::vector<HapticSample>& out);
+  /// The tactile ticks waiting, as take_samples.
+  void take_tactile(std::vector<TactileSample>& out);
+  const TactileLayout& tactile_layout() const { return layout_; }
+  bool has_tactile() const { return layout_.samples > 0 || layout_.rows > 0; }
 
   int fingers() const { return fingers_; }
   /// Any thread.
   std::uint64_t samples_dropped() const { return dropped_.load(); }
+  std::uint64_t tactile_dropped() const { return tactile_dropped_.load(); }
   std::uint64_t watchdog_trips() const { return watchdog_trips_.load(); }
   std::uint64_t nan_forces() const { return nan_forces_.load(); }
 
@@ -81,10 +90,12 @@ class LoopMailboxes {
   ClothFrame refined_;             // simulation thread only: the refined fields the frames copy
   devices::TripleBuffer<LoopSummary> stats_;
   devices::SpscRing<HapticSample> samples_;
+  TactileLayout layout_;
+  devices::SpscRing<TactileSample> tactile_;
   // The gate starts stale (no device sample yet), and counts a trip on each fresh -> stale
   // transition; so does this (the summary's stale events and the watchdog events agree).
   bool was_stale_ = true;  // haptic thread only
-  std::atomic<std::uint64_t> dropped_{0}, watchdog_trips_{0}, nan_forces_{0};
+  std::atomic<std::uint64_t> dropped_{0}, watchdog_trips_{0}, nan_forces_{0}, tactile_dropped_{0};
 };
 
 }  // namespace hapticloth::transport

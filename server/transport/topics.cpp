@@ -6,7 +6,7 @@
 namespace hapticloth::transport {
 
 namespace {
-constexpr const char* kTopicNames[kTopics] = {"topology", "cloth", "haptics", "stats", "events", "scene"};
+constexpr const char* kTopicNames[kTopics] = {"topology", "cloth", "haptics", "stats", "events", "scene", "tactile"};
 }  // namespace
 
 const char* topic_name(Topic t) { return kTopicNames[static_cast<int>(t)]; }

@@ -5,8 +5,8 @@
 
 namespace hapticloth::transport {
 
-enum class Topic : int { Topology, Cloth, Haptics, Stats, Events, Scene };
-inline constexpr int kTopics = 6;
+enum class Topic : int { Topology, Cloth, Haptics, Stats, Events, Scene, Tactile };
+inline constexpr int kTopics = 7;
 const char* topic_name(Topic t);
 /// hapticloth/<server>/<topic>
 std::string key_expression(const std::string& server, const std::string& topic);

@@ -23,6 +23,7 @@ from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
 from mcap.records import Message, Channel, Schema
 from foxglove_schemas_protobuf.Log_pb2 import Log
+from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
 from buildpaths import program
@@ -41,11 +42,14 @@ SCHEMAS = {
     "/events": ("protobuf", "foxglove.Log", "protobuf"),
     "/haptics": ("json", "hapticloth.Haptics", "jsonschema"),
     "/loop": ("json", "hapticloth.LoopStats", "jsonschema"),
+    "/tactile": ("json", "hapticloth.Tactile", "jsonschema"),
+    "/tactile/pins": ("protobuf", "foxglove.RawImage", "protobuf"),
 }
 #: Foxglove channel -> the LCM channel it comes from, one message per LCM message
 FROM_LCM = {"/cloth": "HAPTICLOTH_CLOTH", "/fingertips": "HAPTICLOTH_HAPTICS",
             "/haptics": "HAPTICLOTH_HAPTICS", "/loop": "HAPTICLOTH_STATS",
-            "/events": "HAPTICLOTH_EVENTS"}
+            "/events": "HAPTICLOTH_EVENTS", "/tactile": "HAPTICLOTH_TACTILE",
+            "/tactile/pins": "HAPTICLOTH_TACTILE"}
 
 
 def read_mcap(path: Path):
@@ -66,6 +70,8 @@ def decode(topic: str, data: bytes):
         return SceneUpdate.FromString(data)
     if topic == "/events":
         return Log.FromString(data)
+    if topic == "/tactile/pins":
+        return RawImage.FromString(data)
     return json.loads(data)
 
 
@@ -99,6 +105,11 @@ def check_recording(channels, messages):
             assert len(m["fingers"]) == 2 and set(m["fingers"][0]) >= {"force", "contact", "slipping", "proxy"}
         elif topic == "/loop":
             assert m["ticks"] > 0 and "p99" in m["period_error_us"]
+        elif topic == "/tactile":  # the main job's display: 4 samples a tick, two fingers
+            assert len(m["fingers"]) == 2 and len(m["fingers"][0]["vibration"]) == 4
+            assert set(m["fingers"][0]) >= {"vibration_rms", "u", "v", "normal_force", "touching"}
+        elif topic == "/tactile/pins":  # two 6 x 4 frames of 8-pixel pins, 8 pixels apart
+            assert (m.encoding, m.width, m.height, m.step) == ("mono8", 72, 48, 72) and len(m.data) == 72 * 48
     return per
 
 
@@ -373,15 +384,16 @@ def test_export_of_a_damaged_log_says_where_and_exits_1(damage, recorded_run, tm
 
 
 def test_layout_shows_the_channels_the_server_publishes(recorded_run):
-    """clients/foxglove/layout.json: its 3D panel shows /cloth and /fingertips, and every
-    message path of its plots resolves in a recorded message of its channel."""
+    """clients/foxglove/layout.json: its 3D panel shows /cloth and /fingertips, every message
+    path of its plots resolves in a recorded message of its channel, and its image panel shows
+    the recorded pin frames."""
     layout = json.loads((REPO / "clients" / "foxglove" / "layout.json").read_text())
     panels = layout["configById"]
     (three_d,) = [v for k, v in panels.items() if k.startswith("3D!")]
     assert {t for t, v in three_d["topics"].items() if v["visible"]} == {"/cloth", "/fingertips"}
     assert three_d["followTf"] == "scene"
     channels, messages = read_mcap(recorded_run[0])
-    last = {t: decode(t, d) for t, _, d in messages if t in ("/haptics", "/loop")}
+    last = {t: decode(t, d) for t, _, d in messages if t in ("/haptics", "/loop", "/tactile")}
     paths = [p["value"] for k, v in panels.items() if k.startswith("Plot!") for p in v["paths"]]
     assert len(paths) >= 8
     for path in paths:
@@ -390,6 +402,8 @@ def test_layout_shows_the_channels_the_server_publishes(recorded_run):
         for part in rest.replace("[", ".[").split("."):
             value = value[int(part[1:-1])] if part.startswith("[") else value[part]
         assert isinstance(value, (int, float, bool)), path
+    (image,) = [v for k, v in panels.items() if k.startswith("Image!")]
+    assert image["imageMode"]["imageTopic"] == "/tactile/pins" and "/tactile/pins" in channels
     (log_panel,) = [v for k, v in panels.items() if k.startswith("RosOut!")]
     assert log_panel["topicToRender"] == "/events" and "/events" in channels
 

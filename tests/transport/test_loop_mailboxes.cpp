@@ -14,8 +14,16 @@ haptics::HapticReport report(std::uint64_t tick) {
   return r;
 }
 
+namespace {
+hapticloth::devices::DeviceInfo device(int fingers) {
+  hapticloth::devices::DeviceInfo d;
+  d.fingers = fingers;
+  return d;
+}
+}  // namespace
+
 TEST(LoopMailboxes, SamplesComeOutInOrderAndAFullRingCountsTheRestAsDropped) {
-  LoopMailboxes m(4, 2, 60.0);
+  LoopMailboxes m(4, device(2), 60.0);
   const std::size_t n = LoopMailboxes::kSamples + 10;
   for (std::size_t k = 0; k < n; ++k) m.put_tick(report(k), devices::DeviceState{}, devices::DeviceCommand{});
   EXPECT_EQ(m.samples_dropped(), 10u);
@@ -30,7 +38,7 @@ TEST(LoopMailboxes, SamplesComeOutInOrderAndAFullRingCountsTheRestAsDropped) {
 }
 
 TEST(LoopMailboxes, TakeSamplesStopsAtTheCapacityReserved) {
-  LoopMailboxes m(4, 2, 60.0);
+  LoopMailboxes m(4, device(2), 60.0);
   for (std::uint64_t k = 0; k < 30; ++k) m.put_tick(report(k), devices::DeviceState{}, devices::DeviceCommand{});
   std::vector<HapticSample> out;
   out.reserve(20);
@@ -41,7 +49,7 @@ TEST(LoopMailboxes, TakeSamplesStopsAtTheCapacityReserved) {
 }
 
 TEST(LoopMailboxes, TheClothComesAtMostAtTheClothRate) {
-  LoopMailboxes m(1, 2, 10.0);  // every 0.1 s
+  LoopMailboxes m(1, device(2), 10.0);  // every 0.1 s
   haptics::ClothSnapshot s;
   s.resize(1);
   int frames = 0;
@@ -56,7 +64,7 @@ TEST(LoopMailboxes, TheClothComesAtMostAtTheClothRate) {
 }
 
 TEST(LoopMailboxes, WatchdogTripsCountFreshToStaleTransitions) {
-  LoopMailboxes m(1, 2, 60.0);
+  LoopMailboxes m(1, device(2), 60.0);
   devices::DeviceCommand stale, fresh, fault;
   stale.flags = devices::kFlagStale;
   fault.flags = devices::kFlagFault;
@@ -68,7 +76,7 @@ TEST(LoopMailboxes, WatchdogTripsCountFreshToStaleTransitions) {
 }
 
 TEST(LoopMailboxes, TheLoopsSideDoesNotAllocate) {
-  LoopMailboxes m(100, 5, 60.0);
+  LoopMailboxes m(100, device(5), 60.0);
   haptics::ClothSnapshot s;
   s.resize(100);
   haptics::LoopStats ls;
@@ -99,7 +107,7 @@ haptics::RefinedRegions two_children(int n) {
 }
 
 TEST(LoopMailboxes, TheRefinedChildrenTravelWithTheNextClothFrames) {
-  LoopMailboxes m(3, 2, 1000.0);
+  LoopMailboxes m(3, device(2), 1000.0);
   haptics::ClothSnapshot s;
   s.resize(3);
   const haptics::RefinedRegions r = two_children(5);
@@ -128,7 +136,7 @@ TEST(LoopMailboxes, TheRefinedChildrenTravelWithTheNextClothFrames) {
 }
 
 TEST(LoopMailboxes, RefinedChildrenWithinTheReserveDoNotAllocate) {
-  LoopMailboxes m(100, 2, 60.0);
+  LoopMailboxes m(100, device(2), 60.0);
   haptics::ClothSnapshot s;
   s.resize(100);
   const haptics::RefinedRegions big = two_children(400), small = two_children(50);

@@ -114,6 +114,11 @@ class Client:
         """cb(haptic_state_t): 1 kHz samples, batched."""
         return self.subscribe("haptics", cb)
 
+    def subscribe_tactile(self, cb):
+        """cb(tactile_state_t): each tick's vibration block and pin frame per finger, batched (a
+        device with a tactile display only)."""
+        return self.subscribe("tactile", cb)
+
     def subscribe_events(self, cb):
         return self.subscribe("events", cb)
 

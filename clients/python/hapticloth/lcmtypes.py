@@ -19,6 +19,7 @@ TYPES = (
     "trajectory_cmd_t",
     "scene_request_t",
     "scene_info_t",
+    "tactile_state_t",
 )
 
 _pkg = sys.modules[__package__]
@@ -39,6 +40,7 @@ event_t = globals()["event_t"]
 trajectory_cmd_t = globals()["trajectory_cmd_t"]
 scene_request_t = globals()["scene_request_t"]
 scene_info_t = globals()["scene_info_t"]
+tactile_state_t = globals()["tactile_state_t"]
 
 #: topic -> message class, for the server's outputs (hapticloth/<server>/<topic>).
 TOPICS = {
@@ -48,6 +50,7 @@ TOPICS = {
     "stats": loop_stats_t,
     "events": event_t,
     "scene": scene_info_t,
+    "tactile": tactile_state_t,
 }
 #: inputs of the server
 INPUTS = {"trajectory": trajectory_cmd_t, "scene_request": scene_request_t}

@@ -8,6 +8,8 @@
 //! | `/haptics`     | `hapticloth.Haptics` (JSON schema from the caller) | json |
 //! | `/loop`        | `hapticloth.LoopStats` (JSON schema from the caller) | json |
 //! | `/events`      | `foxglove.Log`               | protobuf |
+//! | `/tactile`     | `hapticloth.Tactile` (JSON schema from the caller) | json |
+//! | `/tactile/pins`| `foxglove.RawImage`          | protobuf |
 //!
 //! Every message carries its log time (ns since the Unix epoch) from the caller, so a recording
 //! and an export of the same run agree. Calls come from one (non-real-time) thread. Errors leave
@@ -21,7 +23,7 @@ use std::io::BufWriter;
 use std::sync::Arc;
 
 use foxglove::messages::{
-    ArrowPrimitive, Color, Log, Point3, Pose, Quaternion, SceneEntity, SceneUpdate,
+    ArrowPrimitive, Color, Log, Point3, Pose, Quaternion, RawImage, SceneEntity, SceneUpdate,
     SpherePrimitive, Timestamp, TriangleListPrimitive, Vector3,
 };
 use foxglove::{
@@ -31,13 +33,14 @@ use foxglove::{
 use crate::{set_error, str_arg};
 
 /// The JSON channels, numbered as in foxglove_bridge.h.
-const JSON_TOPICS: [&str; 2] = ["/haptics", "/loop"];
+const JSON_TOPICS: [&str; 3] = ["/haptics", "/loop", "/tactile"];
 
 pub struct HfSink {
     // Channels first: they are closed before the sinks go.
     cloth: Channel<SceneUpdate>,
     fingertips: Channel<SceneUpdate>,
     events: Channel<Log>,
+    pins: Channel<RawImage>,
     json: Vec<Option<Arc<RawChannel>>>,
     frame: String,
     mcap: Option<McapWriterHandle<BufWriter<File>>>,
@@ -84,6 +87,7 @@ pub extern "C" fn hf_open(
     let cloth = ctx.channel_builder("/cloth").build::<SceneUpdate>();
     let fingertips = ctx.channel_builder("/fingertips").build::<SceneUpdate>();
     let events = ctx.channel_builder("/events").build::<Log>();
+    let pins = ctx.channel_builder("/tactile/pins").build::<RawImage>();
     let mut mcap = None;
     if !mcap_path.is_null() {
         let Some(path) = str_arg(mcap_path, "mcap path") else { return std::ptr::null_mut() };
@@ -119,6 +123,7 @@ pub extern "C" fn hf_open(
         cloth,
         fingertips,
         events,
+        pins,
         json: vec![None; JSON_TOPICS.len()],
         frame: frame.to_string(),
         mcap,
@@ -127,7 +132,7 @@ pub extern "C" fn hf_open(
     }))
 }
 
-/// Declares JSON channel `which` (0 /haptics, 1 /loop) with its JSON schema. 0, or -1.
+/// Declares JSON channel `which` (0 /haptics, 1 /loop, 2 /tactile) with its JSON schema. 0, or -1.
 #[no_mangle]
 pub extern "C" fn hf_declare_json(
     s: *mut HfSink,
@@ -168,8 +173,9 @@ pub extern "C" fn hf_port(s: *const HfSink) -> u16 {
     unsafe { s.as_ref() }.and_then(|s| s.ws.as_ref()).map_or(0, |w| w.port())
 }
 
-/// 1 if channel `which` (0 /cloth, 1 /fingertips, 2 /haptics, 3 /loop, 4 /events) has a sink
-/// that takes it now (the MCAP file, or a live client subscribed to it), else 0.
+/// 1 if channel `which` (0 /cloth, 1 /fingertips, 2 /haptics, 3 /loop, 4 /events, 5 /tactile,
+/// 6 /tactile/pins) has a sink that takes it now (the MCAP file, or a live client subscribed to
+/// it), else 0.
 #[no_mangle]
 pub extern "C" fn hf_wants(s: *const HfSink, which: i32) -> i32 {
     // SAFETY: a handle from hf_open.
@@ -179,6 +185,8 @@ pub extern "C" fn hf_wants(s: *const HfSink, which: i32) -> i32 {
         1 => s.fingertips.has_sinks(),
         2 | 3 => s.json[(which - 2) as usize].as_ref().is_some_and(|c| c.has_sinks()),
         4 => s.events.has_sinks(),
+        5 => s.json[2].as_ref().is_some_and(|c| c.has_sinks()),
+        6 => s.pins.has_sinks(),
         _ => false,
     };
     wanted as i32
@@ -290,7 +298,8 @@ pub extern "C" fn hf_fingertips(
     0
 }
 
-/// A JSON message on channel `which` (0 /haptics, 1 /loop), declared by hf_declare_json.
+/// A JSON message on channel `which` (0 /haptics, 1 /loop, 2 /tactile), declared by
+/// hf_declare_json.
 #[no_mangle]
 pub extern "C" fn hf_json(s: *mut HfSink, which: i32, log_time_ns: u64, json: *const u8, len: usize) -> i32 {
     let Some(s) = sink(s) else { return -1 };
@@ -304,6 +313,24 @@ pub extern "C" fn hf_json(s: *mut HfSink, which: i32, log_time_ns: u64, json: *c
             -1
         }
     }
+}
+
+/// /tactile/pins: an 8-bit grey image (`mono8`) of `width` x `height` pixels, `width` bytes a
+/// row, in the scene's frame.
+#[no_mangle]
+pub extern "C" fn hf_pins(s: *mut HfSink, log_time_ns: u64, width: u32, height: u32, grey: *const u8) -> i32 {
+    let Some(s) = sink(s) else { return -1 };
+    let image = RawImage {
+        timestamp: stamp(log_time_ns),
+        frame_id: s.frame.clone(),
+        width,
+        height,
+        encoding: "mono8".to_string(),
+        step: width,
+        data: slice(grey, (width as usize) * (height as usize)).to_vec().into(),
+    };
+    s.pins.log_with_meta(&image, meta(log_time_ns));
+    0
 }
 
 /// /events: a foxglove.Log with `level` (1 debug, 2 info, 3 warning, 4 error, 5 fatal), `name`
@@ -341,7 +368,7 @@ pub extern "C" fn hf_close(s: *mut HfSink) -> i32 {
     }
     // SAFETY: a handle from hf_open, closed once.
     let s = unsafe { Box::from_raw(s) };
-    let HfSink { cloth, fingertips, events, json, mcap, ws, .. } = *s;
+    let HfSink { cloth, fingertips, events, pins, json, mcap, ws, .. } = *s;
     if let Some(w) = ws {
         w.stop().wait_blocking();
     }
@@ -352,6 +379,6 @@ pub extern "C" fn hf_close(s: *mut HfSink) -> i32 {
             rc = -1;
         }
     }
-    drop((cloth, fingertips, events, json));
+    drop((cloth, fingertips, events, pins, json));
     rc
 }
