@@ -18,6 +18,8 @@ void set_cloth(SceneInfo& info, const cloth::Mesh& mesh, const cloth::Material& 
   info.weave_uv = mesh.weave_uv;
   info.material_name = material.name;
   info.areal_density = material.areal_density;
+  info.weft_period = material.surface.weft.empty() ? 0.0 : material.surface.weft.period();
+  info.warp_period = material.surface.warp.empty() ? 0.0 : material.surface.warp.period();
 }
 
 LoopSummary summarize(const haptics::LoopStats& s) noexcept {
@@ -122,6 +124,8 @@ void fill(const TactileSample* samples, int n, int fingers, const TactileLayout&
   m.num_pins = layout.rows * layout.cols;
   m.sample_rate = layout.sample_rate;
   m.pin_pitch = layout.pin_pitch;
+  m.weft_period = layout.weft_period;
+  m.warp_period = layout.warp_period;
   m.time.resize(n);
   m.tick.resize(n);
   m.flags.resize(n);

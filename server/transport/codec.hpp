@@ -50,6 +50,7 @@ struct TactileSample {
 struct TactileLayout {
   int samples = 0, rows = 0, cols = 0, sample_rate = 0;
   float pin_pitch = 0.0f;
+  float weft_period = 0.0f, warp_period = 0.0f;  ///< m, the fabric's surface (0: none)
 };
 
 /// Loop statistics reduced to what loop_stats_t carries (cheap to compute on the haptic thread:

@@ -24,7 +24,7 @@ Hub::Hub(const TransportOptions& opt, SceneInfo scene)
       scene_(std::move(scene)),
       messages_(opt_, scene_),
       commands_(scene_, opt_.max_command_speed, events_, !opt_.lcm_log.empty()),
-      loops_(scene_.rest_positions.size(), scene_.device, opt_.cloth_rate),
+      loops_(scene_.rest_positions.size(), scene_.device, opt_.cloth_rate, scene_.weft_period, scene_.warp_period),
       transports_(opt_, HubTransports::Inputs{
                             [this](const std::uint8_t* d, std::size_t n) { commands_.on_bytes(d, n, live_.load()); },
                             [this] { if (live_.load()) messages_.request(); },

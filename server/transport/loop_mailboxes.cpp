@@ -28,14 +28,18 @@ TactileLayout layout_of(const devices::DeviceInfo& d) {
 }
 }  // namespace
 
-LoopMailboxes::LoopMailboxes(std::size_t vertices, const devices::DeviceInfo& device, double cloth_rate)
+LoopMailboxes::LoopMailboxes(std::size_t vertices, const devices::DeviceInfo& device, double cloth_rate,
+                             double weft_period, double warp_period)
     : fingers_(device.fingers),
       cloth_period_(1.0 / cloth_rate),
       cloth_(sized_frame(vertices)),
       stats_(LoopSummary{}),
       samples_(kSamples),
       layout_(layout_of(device)),
-      tactile_(device.tactile.any() ? kTactileSamples : 1) {}
+      tactile_(device.tactile.any() ? kTactileSamples : 1) {
+  layout_.weft_period = static_cast<float>(weft_period);
+  layout_.warp_period = static_cast<float>(warp_period);
+}
 
 void LoopMailboxes::put_tactile(const haptics::HapticReport& r, const haptics::TactileRendering& t,
                                 const devices::TactileCommand& out) noexcept {

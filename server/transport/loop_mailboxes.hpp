@@ -48,8 +48,10 @@ class LoopMailboxes {
   static constexpr std::size_t kTactileSamples = 1024;  ///< tactile ticks the ring holds (1 s at 1 kHz)
 
   /// Set-up: frames of `vertices` vertices, samples of `device.fingers` fingers; room for the
-  /// tactile output only if the device declares a display.
-  LoopMailboxes(std::size_t vertices, const devices::DeviceInfo& device, double cloth_rate);
+  /// tactile output only if the device declares a display, whose messages name the fabric's
+  /// surface periods (m; 0: none).
+  LoopMailboxes(std::size_t vertices, const devices::DeviceInfo& device, double cloth_rate, double weft_period = 0.0,
+                double warp_period = 0.0);
 
   // The loops' side (one writer each: the simulation thread, the haptic thread).
   void put_cloth(const haptics::ClothSnapshot& s) noexcept;

@@ -21,6 +21,8 @@ struct SceneInfo {
   std::string scene_name;
   std::string material_name;
   double areal_density = 0.0;                          ///< kg/m^2
+  /// m: the surface's period along the weft and the warp (cloth::Surface; 0: none given)
+  double weft_period = 0.0, warp_period = 0.0;
   std::vector<std::array<int, 3>> triangles;
   std::vector<Eigen::Vector3d> rest_positions;         ///< m, scene frame
   std::vector<std::array<std::array<double, 2>, 3>> weave_uv;  ///< m, per triangle corner

@@ -2,6 +2,10 @@
 #include <gtest/gtest.h>
 
 #include "support/alloc_counter.hpp"
+#include "cloth/mesh.hpp"
+#include "cloth/model.hpp"
+#include "haptics/tactile_rendering.hpp"
+#include "support/fixtures.hpp"
 #include "transport/loop_mailboxes.hpp"
 
 namespace hapticloth::transport {
@@ -147,6 +151,45 @@ TEST(LoopMailboxes, RefinedChildrenWithinTheReserveDoNotAllocate) {
     m.put_cloth(s);
   }
   EXPECT_EQ(guard.count(), 0u);
+}
+
+
+// The tactile output (a device with a display): every tick through the ring without allocating,
+// with the display's layout and the fabric's periods for the messages; a device without a
+// display gets no room and nothing to publish.
+TEST(LoopMailboxes, TactileTicksPassWithTheirLayout) {
+  cloth::GridSpec g;
+  g.nx = g.ny = 2;
+  cloth::Material mat = test::denim();
+  mat.surface.weft = cloth::weave_profile(0.5e-3, 1e-5, cloth::WeaveShape::Sine);
+  mat.surface.normalize_friction();
+  const cloth::ClothModel model = cloth::build_model(cloth::make_grid(g), mat, {});
+  devices::DeviceInfo d = device(2);
+  d.tactile.vibration_rate = 4000;
+  d.tactile.pin_rows = 6;
+  d.tactile.pin_cols = 4;
+  const haptics::TactileRendering rendering(model, d.tactile, 2, 1e-3, 0.008);
+  LoopMailboxes m(4, d, 60.0, 0.5e-3, 0.8e-3);
+  ASSERT_TRUE(m.has_tactile());
+  EXPECT_EQ(m.tactile_layout().samples, 4);
+  EXPECT_EQ(m.tactile_layout().rows * m.tactile_layout().cols, 24);
+  EXPECT_FLOAT_EQ(m.tactile_layout().warp_period, 0.8e-3f);
+  devices::TactileCommand c;
+  c.finger[1].samples = 4;
+  c.finger[1].vibration[2] = 3e-6f;
+  {
+    test::AllocationGuard guard;
+    for (std::uint64_t k = 1; k <= 10; ++k) m.put_tactile(report(k), rendering, c);
+    EXPECT_EQ(guard.count(), 0u);
+  }
+  std::vector<TactileSample> out;
+  out.reserve(LoopMailboxes::kTactileSamples);
+  m.take_tactile(out);
+  ASSERT_EQ(out.size(), 10u);
+  EXPECT_EQ(out[9].tick, 10u);
+  EXPECT_EQ(out[0].out.finger[1].vibration[2], 3e-6f);
+  EXPECT_EQ(m.tactile_dropped(), 0u);
+  EXPECT_FALSE(LoopMailboxes(4, device(2), 60.0).has_tactile());
 }
 
 }  // namespace

@@ -3,7 +3,7 @@
 //                         [--pcg-preconditioner ssor|block-jacobi] [--pcg-omega W] [--matrix-refresh R]
 //                         [--simd baseline|avx2|avx512]
 //                         [--pinch [--settle S]] --json
-//   hapticloth-bench haptic [--scene FILE] [--duration S] --json
+//   hapticloth-bench haptic [--scene FILE] [--duration S] [--no-tactile] --json
 //   hapticloth-bench haptic --subscribers N [--duration S] [--cloth-rate HZ] --json
 //   hapticloth-bench timer [--ticks N] [--priority P] --json
 //   hapticloth-bench udp [options of hapticloth-bench-udp] --json
@@ -177,6 +177,10 @@ int main(int argc, char** argv) {
   haptic->add_option("--duration", haptic_duration, "s in real time (default 10)")
       ->check(opts::positive(3600.0, "s"));
   haptic->add_flag("--json", json, "one JSON object on stdout");
+  bool no_tactile = false;
+  haptic->add_flag("--no-tactile", no_tactile,
+                   "without the device's tactile display (the scene's [device.tactile]): the loop's "
+                   "figures with tactile rendering off, to compare");
   haptic->add_option("--refine", refine,
                      "local refinement under the fingertips, auto, on or off (default: the scene's haptics.refine)")
       ->check(CLI::IsMember({"auto", "on", "off"}));
@@ -293,6 +297,7 @@ int main(int argc, char** argv) {
       app::Scene scene = app::load_scene(haptic_scene);
       if (!scene.has_device) throw std::runtime_error(haptic_scene + ": no [device] table");
       apply_refine(scene);
+      if (no_tactile) scene.device.tactile = devices::TactileCapability{};
       app::ServeOptions so;
       so.duration = haptic_duration;
       so.realtime = true;
