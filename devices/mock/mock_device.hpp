@@ -31,7 +31,7 @@ class MockDevice final : public Device {
   /// With a trajectory given directly (tests).
   MockDevice(const DeviceOptions& opt, Trajectory tr);
 
-  // The Device interface (hal/device.hpp), which every driver declares the same way.
+  // The Device interface (hal/device.hpp).
   const DeviceInfo& info() const override { return info_; }
   std::string configure() override;
   std::string activate() override;

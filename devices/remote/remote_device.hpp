@@ -38,7 +38,7 @@ class RemoteDevice final : public Device, public RemoteCommandSink {
 
   explicit RemoteDevice(const DeviceOptions& opt);
 
-  // The Device interface (hal/device.hpp), which every driver declares the same way.
+  // The Device interface (hal/device.hpp).
   const DeviceInfo& info() const override { return info_; }
   std::string configure() override;
   std::string activate() override;

@@ -56,7 +56,7 @@ class UdpDevice final : public Device {
   UdpDevice(const UdpDevice&) = delete;
   UdpDevice& operator=(const UdpDevice&) = delete;
 
-  // The Device interface (hal/device.hpp), which every driver declares the same way.
+  // The Device interface (hal/device.hpp).
   const DeviceInfo& info() const override { return info_; }
   /// Creates, binds and makes non-blocking the socket. Returns the error (for example the port
   /// is in use); never throws.

@@ -282,7 +282,10 @@ void attach(const Scene& scene, const ServeOptions& opt, devices::DeviceHandle& 
 }
 
 // With a tactile display: a trace of what each fingertip's skin got, for the summary's line on
-// whether the vibration followed the stroke (tactile_trace.hpp).
+// whether the vibration followed the stroke (tactile_trace.hpp): of the first kTactileTraceSeconds
+// (a longer run's later ticks are counted, not kept: 15 MB for two fingers at 4 kHz).
+constexpr double kTactileTraceSeconds = 120.0;
+
 std::unique_ptr<haptics::TactileTrace> tactile_trace(const cloth::ClothModel& model, haptics::Session& session,
                                                      double duration) {
   const haptics::TactileRendering* t = session.haptics().tactile();
@@ -292,7 +295,7 @@ std::unique_ptr<haptics::TactileTrace> tactile_trace(const cloth::ClothModel& mo
   const int block = cap.vibration() ? static_cast<int>(std::lround(cap.vibration_rate / rate)) : 1;
   auto trace = std::make_unique<haptics::TactileTrace>(model.material.surface, session.haptics().fingers(), block,
                                                        block * rate, 1.0 / rate,
-                                                       static_cast<long>((duration + 1.0) * rate));
+                                                       static_cast<long>((std::min(duration, kTactileTraceSeconds) + 1.0) * rate));
   session.add_observer(trace.get());
   return trace;
 }

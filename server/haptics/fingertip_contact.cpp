@@ -167,7 +167,6 @@ void FingertipContact::ensure_candidates(int f, const Vec3& centre, double motio
   F.query_refits = bp_.refits();
   F.ncand = bp_.query_sphere(centre, p_.radius + F.query_extra, F.cand.data(),
                              static_cast<int>(F.cand.size()));
-  ++queries_;
 }
 
 void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec3& proxy_at) {

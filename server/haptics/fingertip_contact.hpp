@@ -88,8 +88,6 @@ class FingertipContact final : public cloth::StepContacts {
   /// Largest depth of any cloth point (vertex, edge or face) inside a fingertip sphere, m.
   double max_penetration() const { return max_pen_; }
   std::uint64_t active_samples() const { return samples_in_contact_; }
-  /// Broad-phase queries made (the candidates of one serve while they provably cover the reach).
-  std::uint64_t queries() const { return queries_; }
 
  private:
   struct Sample {  // one contact: a sample point against one fingertip
@@ -167,7 +165,6 @@ class FingertipContact final : public cloth::StepContacts {
   double vmax_ = 0.0;  // fastest vertex at the start of the step, m/s
   double max_pen_ = 0.0;
   std::uint64_t samples_in_contact_ = 0;
-  std::uint64_t queries_ = 0;
 };
 
 }  // namespace hapticloth::haptics

@@ -101,7 +101,7 @@ void HapticLoop::tick(double now) noexcept {
   if (dev_.read(now, state_) == devices::Status::Error) ++device_errors_;
   in_.acquire();
   const ClothSnapshot& s = in_.front();
-  count_skipped_narrow_phase(s);
+  count_out_of_reach(s);
   report_.time = now;
   report_.tick = tick_;
   const Presence present = presence(now);
@@ -132,10 +132,10 @@ HapticLoop::Presence HapticLoop::presence(double now) const noexcept {
   return p;
 }
 
-void HapticLoop::count_skipped_narrow_phase(const ClothSnapshot& s) noexcept {
+void HapticLoop::count_out_of_reach(const ClothSnapshot& s) noexcept {
   bool any_near = false;
   for (int f = 0; f < fingers_; ++f) any_near = any_near || (s.time >= 0.0 && s.near[f]);
-  if (!any_near) ++np_skipped_;
+  if (!any_near) ++out_of_reach_;
 }
 
 // The device's fingertips in the scene frame (`measured`), and as the contact takes them

@@ -74,8 +74,8 @@ class HapticLoop {
   const FingerParams& params() const { return fp_; }
   std::uint64_t device_errors() const { return device_errors_; }
   std::uint64_t contact_ticks() const { return contact_ticks_; }
-  /// Ticks on which no finger was within reach of the cloth.
-  std::uint64_t narrow_phase_skipped() const { return np_skipped_; }
+  /// Ticks on which no finger was within the broad-phase margin of the cloth.
+  std::uint64_t ticks_out_of_reach() const { return out_of_reach_; }
   /// Ticks that came more than half a period late (their motion caught up over the missed ticks).
   std::uint64_t late_ticks() const { return late_ticks_; }
   const LateTickCatchUp& catch_up() const { return catch_up_; }
@@ -91,7 +91,7 @@ class HapticLoop {
   using Presence = std::array<bool, kMaxFingers>;
   Presence presence(double now) const noexcept;
   static void absent(FingerReport& r, const Vec3& centre, const Vec3& velocity) noexcept;
-  void count_skipped_narrow_phase(const ClothSnapshot& s) noexcept;
+  void count_out_of_reach(const ClothSnapshot& s) noexcept;
   void read_fingertips(double tick_dt, const Presence& present, std::array<Fingertip, kMaxFingers>& tips,
                        std::array<Vec3, kMaxFingers>& measured) noexcept;
   void touch(const ClothSnapshot& s, double now, double tick_dt, const Presence& present,
@@ -125,7 +125,7 @@ class HapticLoop {
   std::array<Vec3, kMaxFingers> damp_{};  // this tick's passivity damping per finger, scene frame
   bool guard_ = true;
   double last_now_ = -1.0;
-  std::uint64_t tick_ = 0, device_errors_ = 0, contact_ticks_ = 0, np_skipped_ = 0, late_ticks_ = 0;
+  std::uint64_t tick_ = 0, device_errors_ = 0, contact_ticks_ = 0, out_of_reach_ = 0, late_ticks_ = 0;
 };
 
 }  // namespace hapticloth::haptics

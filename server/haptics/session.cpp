@@ -271,7 +271,7 @@ SessionReport Session::report() const {
   r.sim_steps = sim_->steps();
   r.cloth_time = sim_->state().time - cloth_start_;
   r.contact_ticks = loop_->contact_ticks();
-  r.narrow_phase_skipped = loop_->narrow_phase_skipped();
+  r.out_of_reach_ticks = loop_->ticks_out_of_reach();
   r.patch_rebuilds = loop_->patch_rebuilds();
   r.patch_softened = loop_->patch_softened();
   r.patch_candidate_overflows = sim_->patch_candidate_overflows();
@@ -331,7 +331,7 @@ std::string SessionReport::to_text() const {
      << std::setprecision(1);
   os << "contact ticks    " << contact_ticks << " (slipping " << slip_ticks << "), max force "
      << max_force << " N\n";
-  os << "narrow phase     skipped on " << narrow_phase_skipped << " ticks (no finger near the cloth)\n";
+  os << "out of reach     " << out_of_reach_ticks << " ticks (no fingertip within the broad-phase margin of the cloth)\n";
   os << "fingertip contact " << contact_samples << " sample-steps, " << contact_revisions
      << " re-solves (" << contact_settles << " settled locally, then " << contact_confirmations
      << " whole solves; " << contact_line_cuts << " cut short by the line search), deepest cloth point "
@@ -381,7 +381,7 @@ std::string SessionReport::to_json() const {
   j["contact_ticks"] = contact_ticks;
   j["slip_ticks"] = slip_ticks;
   j["max_force_n"] = max_force;
-  j["narrow_phase_skipped"] = narrow_phase_skipped;
+  j["out_of_reach_ticks"] = out_of_reach_ticks;
   j["patch_rebuilds"] = patch_rebuilds;
   j["patch_softened"] = patch_softened;
   j["patch_candidate_overflows"] = patch_candidate_overflows;

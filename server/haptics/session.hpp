@@ -44,7 +44,7 @@ struct SessionReport {
   /// Of each sim step, the wait for the integrator's helper thread (two threads; 0 on one): the
   /// steps with long waits are those of a slowed helper core, not of the step's own work.
   Histogram sim_helper_wait_us;
-  std::uint64_t sim_steps = 0, contact_ticks = 0, slip_ticks = 0, narrow_phase_skipped = 0;
+  std::uint64_t sim_steps = 0, contact_ticks = 0, slip_ticks = 0, out_of_reach_ticks = 0;
   std::uint64_t device_errors = 0;
   /// Direct coupling: cloth samples in contact summed over steps, steps re-solved because the
   /// contact set changed, and the deepest any cloth point got inside a fingertip sphere (m).

@@ -111,8 +111,6 @@ class Hub : public haptics::SessionObserver {
   HubStats stats() const;
   const TransportOptions& options() const { return opt_; }
   const SceneInfo& scene() const { return scene_; }
-  /// The encoded scene_info_t the queryable answers.
-  std::vector<std::uint8_t> scene_bytes() const { return messages_.info_bytes(); }
 
  private:
   // In the order they are built; the transports' input callbacks reach the parts before them,

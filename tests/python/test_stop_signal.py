@@ -64,7 +64,7 @@ CASES = {
 }
 SIGNALS = {"SIGINT": signal.SIGINT, "SIGTERM": signal.SIGTERM}
 
-TEXT_LINES = ("haptic ticks", "sim steps", "contact ticks", "narrow phase", "fingertip contact",
+TEXT_LINES = ("haptic ticks", "sim steps", "contact ticks", "out of reach", "fingertip contact",
               "scheduling", "device counters", "safety gate", "cloth events", "trajectory cmds",
               "device record", "stopped")
 JSON_KEYS = ("haptic_ticks", "sim_steps", "contact_ticks", "contact_samples", "max_force_n",

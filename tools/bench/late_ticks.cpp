@@ -104,8 +104,7 @@ json late_ticks(const LateTickOptions& opt) {
       const RunOutcome u = run(sc, m, start, script, w, late, late_ms * 1e-3, false);
       std::vector<double> at;
       for (long k : late) at.push_back(k / rate);
-      // One JSON object per case (its keys: docs/programs.md); a key list like the run summary's
-      // events_json, alike in shape only.
+      // One JSON object per case (its keys: docs/programs.md).
       cases.push_back({{"name", w.name},
                        {"late_ms", late_ms},
                        {"late_at_s", at},
