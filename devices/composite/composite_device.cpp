@@ -38,6 +38,12 @@ GateConfig part_gate_config(const DeviceOptions& opt) {
   return g;
 }
 
+// The device's status from its parts': Error over NoData over Ok.
+Status worse(Status a, Status b) noexcept {
+  if (a == Status::Error || b == Status::Error) return Status::Error;
+  return a == Status::NoData || b == Status::NoData ? Status::NoData : Status::Ok;
+}
+
 }  // namespace
 
 CompositeDevice::CompositeDevice(const DeviceOptions& opt) {
@@ -130,9 +136,7 @@ Status CompositeDevice::write(double now, const DeviceCommand& cmd) noexcept {
     one.force[0] = cmd.force[i];
     one.flags = cmd.flags;
     p.gate.apply(now, p.state.received_time, one, gated);
-    const Status s = p.device->write(now, gated);
-    if (s == Status::Error) worst = Status::Error;
-    else if (s == Status::NoData && worst == Status::Ok) worst = Status::NoData;
+    worst = worse(worst, p.device->write(now, gated));
   }
   sum_counters();
   return worst;
@@ -147,9 +151,7 @@ Status CompositeDevice::write_tactile(double now, const TactileCommand& cmd) noe
     one.finger[0] = cmd.finger[i];
     one.flags = cmd.flags;
     p.gate.apply_tactile(one, gated);
-    const Status s = p.device->write_tactile(now, gated);
-    if (s == Status::Error) worst = Status::Error;
-    else if (s == Status::NoData && worst == Status::Ok) worst = Status::NoData;
+    worst = worse(worst, p.device->write_tactile(now, gated));
   }
   sum_counters();
   return worst;
