@@ -54,10 +54,10 @@ std::string refinement_stage(const Scene& sc, const cloth::ClothModel& m) {
     os << "local refinement on (haptics.refine = \"" << haptics::to_string(asked) << "\"), a child mesh graded from "
        << finest * 1e3 << " mm under each touching fingertip where its triangle is coarser (docs/contact.md)";
   else if (asked == haptics::Refine::Auto)
-    os << "local refinement off with direct coupling (haptics.refine = \"auto\"): a child's compliance "
-          "changing as the contact moves still gives energy that the passivity controller takes back; "
-          "the felt force is stiffer than the cloth's where the mesh is coarse (docs/contact.md gives by "
-          "how much), refine = \"on\" to refine anyway";
+    os << "local refinement off with direct coupling (haptics.refine = \"auto\"): with it on, the fastest "
+          "strokes of the stress map sink the cloth deeper into the fingertip; the felt force is stiffer "
+          "than the cloth's where the mesh is coarse (docs/contact.md gives by how much), refine = \"on\" "
+          "to refine anyway";
   else
     os << "local refinement off (haptics.refine = \"off\"), so the felt force is stiffer than the "
           "cloth's (docs/contact.md gives by how much)";

@@ -87,6 +87,16 @@ struct ProxyNode {
   Vec3 target_velocity = Vec3::Zero();  ///< m/s, for the coupling's damping
   double stiffness = 0.0;               ///< N/m of the coupling
   double damping = 0.0;                 ///< N s/m of the coupling
+  /// Along the unit `axis` the coupling's stiffness is `axis_stiffness` instead (0: isotropic):
+  /// a local refinement's compliance acts along the contact's normal only.
+  Vec3 axis = Vec3::Zero();
+  double axis_stiffness = 0.0;
+  /// The coupling's stiffness matrix, N/m: k I + (k_axis - k) a a^T.
+  Mat3 stiffness_matrix() const {
+    Mat3 K = stiffness * Mat3::Identity();
+    if (axis_stiffness > 0.0) K += (axis_stiffness - stiffness) * axis * axis.transpose();
+    return K;
+  }
   Vec3 displacement = Vec3::Zero();     ///< out: its motion over the last step, m
 };
 

@@ -368,11 +368,13 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
     cloth::ProxyNode& P = integ_.proxies()[f];
     approach_refined_compliance(f);
     P.stiffness = 1.0 / (1.0 / p_.coupling_stiffness + refined_c_[f]);
+    P.axis_stiffness = 0.0;
     valid_[f] = in[f].valid;
     if (!in[f].valid) {  // no device sample: the proxy stays where it is, touching nothing
       P.target = P.x;
       P.target_velocity.setZero();
       P.damping = 0.0;
+      device_target_[f] = P.x;
       fing_[f].prev.clear();
       fing_[f].now.clear();
       fing_[f].gone.clear();
@@ -384,12 +386,16 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
     const bool first = !seen_[f];
     if (first) {  // the first sample, or back after an absence: the proxy starts at the fingertip
       P.x = in[f].position;
+      tip_[f] = P.x;
       last_disp_[f].setZero();
       seen_[f] = true;
     }
     p0_[f] = P.x;
     set_coupling_target(P, in[f]);
     P.damping = p_.coupling_damping;
+    device_target_[f] = P.target;
+    refined_axis_[f].setZero();
+    if (short_steps_ && refined_c_[f] > 0.0) couple_through_fingertip(f, P);
     find_samples(f, s, expected_proxy(f, first));
   }
   rebuild_springs();
@@ -419,6 +425,37 @@ void FingertipContact::approach_refined_compliance(int f) {
   const double fn = std::max(out_[f].force.dot(out_[f].normal), 0.0);
   const double most = fn > 0.0 ? kRefinedDepthRate * h_ / fn : std::abs(target - now);
   refined_c_[f] = now + std::clamp(target - now, -most, most);
+}
+
+// With a refined compliance c the chain is cloth -[c]- fingertip -[k || b]- device: the coupling's
+// damper acts across the fingertip, not across the global proxy. Over a backward Euler step the
+// damper is a spring b/h anchored at the fingertip's last position moved by the device's
+// motion, so k || b is the spring k1 = k + b/h towards
+//     a = (k T + (b/h) (tip + h v_T)) / k1
+// (T the device's target), and in series with c the proxy P gets the spring
+// 1 / (1/k1 + c) towards a, undamped: F = (a - P) / (1/k1 + c), and the fingertip sits at
+// a - F / k1 = P + c F. With c = 0 this is the coupling as the integrator applies it (k to T,
+// b to v_T). Put the damper on P instead (k_eff = 1 / (1/k + c) with b in parallel), a large
+// c leaves the damper (b/h = 1000 N/m at 1 ms) far stiffer than the spring, and P, pushed
+// through the slack cloth by the other finger of a pinch, dragged a fingertip whose spring k
+// no longer carried the force the device rendered, and the coupling's energy balance saw
+// energy created (docs/contact.md, "the chain through the fingertip").
+//
+// The child measures how much deeper the fingertip sits along the contact's normal, so c acts
+// along the last step's normal n alone: the spring is k1 across it and 1 / (1/k1 + c) along it.
+// Isotropic, a slack cloth's compliance left the proxy a spring of a few N/m sideways, and a
+// sticking contact dragged it with the cloth, far beyond the friction cone.
+void FingertipContact::couple_through_fingertip(int f, cloth::ProxyNode& P) {
+  const double kb = p_.coupling_damping / h_;
+  const double k1 = p_.coupling_stiffness + kb;
+  P.target = (p_.coupling_stiffness * P.target + kb * (tip_[f] + h_ * P.target_velocity)) / k1;
+  P.stiffness = k1;
+  P.damping = 0.0;
+  refined_axis_[f] = out_[f].normal;
+  if (refined_axis_[f].squaredNorm() > 0.0) {
+    P.axis = refined_axis_[f];
+    P.axis_stiffness = 1.0 / (1.0 / k1 + refined_c_[f]);
+  }
 }
 
 // The coupling's target for proxy P: the device's fingertip. But when the spring would ask
@@ -645,7 +682,7 @@ void FingertipContact::end_step(const cloth::ClothState& s) {
     const cloth::ProxyNode& P = integ_.proxies()[f];
     r = ProxyResult{};
     r.proxy = P.x;
-    r.target = P.target;
+    r.target = device_target_[f];
     r.target_velocity = P.target_velocity;
     r.coupling_stiffness = P.stiffness;
     if (!valid_[f]) {  // no device sample this step
@@ -703,11 +740,14 @@ void FingertipContact::end_step(const cloth::ClothState& s) {
       r.patch_radius = std::max(r.patch_radius, (d - d.dot(r.normal) * r.normal).norm());
     }
     // With local refinement the fingertip sits beyond the global proxy by the compliance the
-    // global mesh lacks, in series with the coupling: the step solved the proxy with the spring
-    // 1 / (1/k + c), so the fingertip is where the scene's spring k alone carries the force F,
-    // c F beyond the proxy (along -n in a frictionless press). Reported there, the coupling's
-    // spring k (proxy - target) is F, as the passivity controller's energy balance needs.
-    r.proxy = P.x - refined_c_[f] * r.force;
+    // global mesh lacks, in series with the coupling: c F beyond it, where the coupling alone
+    // carries the force F (along the step's axis with direct coupling, couple_through_fingertip;
+    // isotropic on the multirate path, whose proxies have the spring 1 / (1/k + c)). Reported
+    // there, the coupling's spring k (proxy - target) is what the passivity controller's energy
+    // balance needs.
+    const Vec3 series = short_steps_ ? Vec3(refined_axis_[f] * refined_axis_[f].dot(r.force)) : r.force;
+    r.proxy = P.x - refined_c_[f] * series;
+    tip_[f] = r.proxy;
     nearest_surface(f, s, P.x, r);
     max_pen_ = std::max(max_pen_, r.penetration);
     samples_in_contact_ += r.points;

@@ -127,6 +127,7 @@ class FingertipContact final : public cloth::StepContacts {
   void linearize_pressure(Sample& q) const;
   void decide_friction(int f, Sample& q) const;
   void set_coupling_target(cloth::ProxyNode& P, const FingerTarget& device) const;
+  void couple_through_fingertip(int f, cloth::ProxyNode& P);
   Vec3 expected_proxy(int f, bool first);
   void approach_refined_compliance(int f);
   double normal_at_end(const Sample& q, const Vec3& rel_step) const;
@@ -157,6 +158,9 @@ class FingertipContact final : public cloth::StepContacts {
   std::array<double, kMaxFingers> refined_target_{};  // m/N, the refinement's latest
   std::array<Vec3, kMaxFingers> last_disp_{};    // the proxy's displacement in the last step
   std::array<Vec3, kMaxFingers> last_target_{};  // the coupling's target in the last step
+  std::array<Vec3, kMaxFingers> device_target_{};  // this step's device target (set_coupling_target)
+  std::array<Vec3, kMaxFingers> refined_axis_{};  // the refined compliance's axis this step (direct coupling)
+  std::array<Vec3, kMaxFingers> tip_{};  // the fingertip at the end of the last step (result().proxy)
   std::array<Vec3, kMaxFingers> p0_{};  // proxies at the start of the step
   std::array<bool, kMaxFingers> seen_{}, valid_{};  // present since the last absence / this step
   const cloth::ClothState* s0_ = nullptr;          // the state the step started from

@@ -108,7 +108,7 @@ void LocalRefinement::update(const RefinementInput& step) {
     for (int g = 0; g < fingers; ++g)
       if (in[g].in && std::binary_search(region.begin(), region.end(), at[g]->tri)) mine[g] = in[g];
     child_[f]->settle(mine, fresh ? 4 * p_.iterations : p_.iterations);
-    compliance_[f] = std::max(0.0, series_depth(*child_[f], f, mine)) / in[f].force;
+    compliance_[f] = std::min(std::max(0.0, series_depth(*child_[f], f, mine)) / in[f].force, p_.max_compliance);
   }
 }
 
