@@ -43,21 +43,15 @@ std::string refinement_stage(const Scene& sc, const cloth::ClothModel& m) {
      << " mm edges resolve: ";
   const haptics::Refine asked = sc.haptics.coupling.refine;
   const haptics::Rendering mode = sc.haptics.rendering;
-  const bool multirate = haptics::multirate(mode);
   if (mode == haptics::Rendering::Patch)
     os << (asked == haptics::Refine::Off ? "local refinement off (the patch model has its own patch)"
                                          : "no local refinement: the patch model renders from its own "
                                            "subdivided patch");
   else if (!haptics::mesh_needs_refinement(m, r, radius))
     os << "no local refinement needed";
-  else if (haptics::refines(asked, multirate))
+  else if (haptics::refines(asked))
     os << "local refinement on (haptics.refine = \"" << haptics::to_string(asked) << "\"), a child mesh graded from "
        << finest * 1e3 << " mm under each touching fingertip where its triangle is coarser (docs/contact.md)";
-  else if (asked == haptics::Refine::Auto)
-    os << "local refinement off with direct coupling (haptics.refine = \"auto\"): with it on, the fastest "
-          "strokes of the stress map sink the cloth deeper into the fingertip; the felt force is stiffer "
-          "than the cloth's where the mesh is coarse (docs/contact.md gives by how much), refine = \"on\" "
-          "to refine anyway";
   else
     os << "local refinement off (haptics.refine = \"off\"), so the felt force is stiffer than the "
           "cloth's (docs/contact.md gives by how much)";

@@ -182,6 +182,7 @@ class Integrator {
   /// Proxy nodes (config.proxies of them) and the point springs between them and the cloth,
   /// both set by the caller before each step (capacity is the caller's: reserve it).
   std::vector<ProxyNode>& proxies() { return proxies_; }
+  const std::vector<ProxyNode>& proxies() const { return proxies_; }
   std::vector<PointSpring>& point_springs() { return springs_; }
   /// The contact set's owner; reserve point_springs() first: the re-solves' copies of the set
   /// are sized to it here, so they allocate nothing on the step.

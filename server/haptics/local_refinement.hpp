@@ -44,14 +44,12 @@ struct RefinementParams {
   double max_compliance = 0.05;
 };
 
-/// Whether to refine where the global mesh does not resolve the contact patch. Auto: on the
-/// multirate path's response model, and off with direct coupling: there, with it on, the
-/// stress map's fastest stroke into a 1000x stiffer cloth sinks the cloth 0.94 mm into the
-/// fingertip against 0.48 mm without (docs/contact.md, "Local refinement").
+/// Whether to refine where the global mesh does not resolve the contact patch. Auto and On: on
+/// both paths, direct coupling and the response model (mesh_needs_refinement decides where);
+/// Off never. (The patch model is its own refinement: the key is refused with it.)
 enum class Refine { Auto, On, Off };
 inline const char* to_string(Refine r) { return r == Refine::Auto ? "auto" : r == Refine::On ? "on" : "off"; }
-/// `multirate`: the response model renders between global steps (else direct coupling).
-inline bool refines(Refine r, bool multirate) { return r == Refine::On || (r == Refine::Auto && multirate); }
+inline bool refines(Refine r) { return r != Refine::Off; }
 
 /// m: the child's edge at the contact point for a fingertip of `radius`.
 double finest_edge(const RefinementParams& p, double radius);

@@ -51,10 +51,10 @@ std::unique_ptr<SimCoupling> make_sim_coupling(Rendering m, const cloth::ClothMo
   switch (m) {
     case Rendering::Direct:
       return std::make_unique<ProxyCoupling>(model, integ, fingers, finger, coupling,
-                                             refines(coupling.refine, false));
+                                             refines(coupling.refine));
     case Rendering::Response:
       return std::make_unique<ResponseCoupling>(model, integ, fingers, finger, coupling,
-                                                refines(coupling.refine, true));
+                                                refines(coupling.refine));
     case Rendering::Patch:
       return std::make_unique<KernelCoupling>(model, integ, fingers, kernel_radius(model, finger, coupling),
                                               coupling.finger_mass, patch.radius, coupling.margin);

@@ -86,7 +86,9 @@ def test_finer_mesh_is_closer_to_the_finest(accuracy):
 
 def test_press_force(accuracy):
     ref_force = accuracy["scenes"]["press"]["reference_max_force_n"]
-    assert ref_force > 0.2  # the finger really presses the drum
+    # The finger really presses the drum: several times the 29-44 mN a fingertip detects (0.18 N
+    # with the drum's 15 mm elements refined under it, 0.2-0.3 N without)
+    assert ref_force > 0.1
     direct = find(runs(accuracy, "press", "dt-alpha"), dt_ms=1.0, alpha=1.0)
     assert direct["force_err_rel"] < 0.3
     patch = find(runs(accuracy, "press", "local-patch"), dt_ms=20.0)
@@ -146,7 +148,7 @@ def test_late_ticks():
     pinch, the coupling gives the hand no energy beyond passivity (<= 1 mJ) and no force step
     (<= 2x the largest tick-to-tick change on time); the catch-up and the passivity controller
     are what keeps it so (without them the stroke 20 ms late gives 10x more energy, and the
-    pinch 20 ms late a 9x larger step)."""
+    pinch 20 ms late a 2.6x larger step)."""
     j = bench("late-ticks")
     assert [c["late_ms"] for c in j["cases"]] == [1.0, 2.0, 5.0, 10.0, 20.0] * 3
     assert {c["name"] for c in j["cases"]} == {"press", "stroke", "pinch"}
@@ -155,11 +157,15 @@ def test_late_ticks():
         assert c["injected_energy_j"] <= 1e-3, c
         assert c["max_force_jump_n"] <= 2.0 * c["on_time_max_force_jump_n"], c
         assert c["on_time_max_force_jump_n"] > 0.0, c
-        assert c["injected_energy_j"] <= c["unguarded"]["injected_energy_j"] + 1e-9, c
+        # No more than without the guards, to within the passivity controller's deadband (1 uJ:
+        # deficits under it are left alone by design, haptics/passivity.hpp)
+        assert c["injected_energy_j"] <= c["unguarded"]["injected_energy_j"] + 1e-6, c
     stroke20 = next(c for c in j["cases"] if c["name"] == "stroke" and c["late_ms"] == 20.0)
     assert stroke20["unguarded"]["injected_energy_j"] > 5.0 * stroke20["injected_energy_j"]
     pinch20 = next(c for c in j["cases"] if c["name"] == "pinch" and c["late_ms"] == 20.0)
-    assert pinch20["unguarded"]["max_force_jump_n"] > 5.0 * pinch20["max_force_jump_n"]
+    # 0.092 N against 0.035 N with the pinch refined under the fingertips (the compliance in
+    # series softens both); 9x before the main job refined by default
+    assert pinch20["unguarded"]["max_force_jump_n"] > 2.0 * pinch20["max_force_jump_n"]
 
 
 def test_tactile():

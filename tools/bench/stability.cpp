@@ -71,11 +71,14 @@ Outcome run(const app::Scene& sc, const cloth::ClothModel& m, const cloth::Cloth
       if (o.finite) {
         o.max_kinetic = std::max(o.max_kinetic, cloth::compute_energies(m, s, Vec3::Zero()).kinetic);
         // Direct coupling: the proxy is the fingertip sphere solved with the cloth, checked on
-        // every step whether or not it touches (a finger through the cloth touches nothing).
-        // The multirate path renders its proxy between steps; it is checked while in contact.
+        // every step whether or not it touches (a finger through the cloth touches nothing);
+        // the global proxy, as the fingertip reported under local refinement sits deeper than
+        // the coarse cloth by design (the dimple it cannot take: docs/contact.md). The multirate
+        // path renders its proxy between steps; it is checked while in contact.
         for (int f = 0; f < h.fingers(); ++f)
           if (rep.finger[f].in_contact || !c.multirate) {
-            const double pen = r - distance_to_cloth(rep.finger[f].proxy, s.x, m);
+            const Vec3& sphere = c.multirate ? rep.finger[f].proxy : w.integrator().proxies()[f].x;
+            const double pen = r - distance_to_cloth(sphere, s.x, m);
             o.max_penetration = std::max(o.max_penetration, pen);
             ++o.contact_checks;
             o.deep_checks += pen > pen_tol;
