@@ -591,7 +591,7 @@ bool Integrator::revise_contacts(const ClothState& s, double h) {
     const SolveStatus st = settle ? solver_->settle_changed(A_, spring_rows_.data(), rows, rhs_.data(), dv_.data())
                                   : solver_->solve_changed(A_, spring_rows_.data(), rows, rhs_.data(), dv_.data());
     events_.contact_settles += settle;
-    if (!took_resolve(st, t3, same)) return false;
+    if (!account_resolve(st, t3, same)) return false;
     unconfirmed = settle;
     // A settle is taken whole (the line search's quadratic holds for a whole solve only).
     cut = !settle && rev >= kPlainRevisions && rev + 1 < cfg_.max_contact_revisions && line_search_contacts(s, h);
@@ -611,7 +611,7 @@ bool Integrator::confirm_settled(const ClothState& s, double h, bool& same) {
   ++events_.contact_confirmations;
   dv_from_ = dv_;
   const auto t = Clock::now();
-  if (!took_resolve(solver_->resolve(A_, rhs_.data(), dv_.data()), t, same)) return false;
+  if (!account_resolve(solver_->resolve(A_, rhs_.data(), dv_.data()), t, same)) return false;
   candidate_state(s, h);
   return true;
 }
@@ -619,7 +619,7 @@ bool Integrator::confirm_settled(const ClothState& s, double h, bool& same) {
 // A re-solve's accounting (begun at t0, from dv_from_): its iterations and time, whether it
 // left dv_ as it was (`same`: whatever the solver; a PCG guess already within its tolerance),
 // and dv_full_; false if it failed (resolved()).
-bool Integrator::took_resolve(SolveStatus st, Clock::time_point t0, bool& same) {
+bool Integrator::account_resolve(SolveStatus st, Clock::time_point t0, bool& same) {
   solver_synced_ = st == SolveStatus::Ok;
   timing_.iterations += solver_->iterations();
   same = dv_ == dv_from_;

@@ -235,7 +235,7 @@ class Integrator {
   bool solve(const ClothState& s, double h);
   bool revise_contacts(const ClothState& s, double h);
   bool confirm_settled(const ClothState& s, double h, bool& same);
-  bool took_resolve(SolveStatus st, std::chrono::steady_clock::time_point t0, bool& same);
+  bool account_resolve(SolveStatus st, std::chrono::steady_clock::time_point t0, bool& same);
   bool resolved(SolveStatus st);
   bool line_search_contacts(const ClothState& s, double h);
   double spring_depth(const PointSpring& sp, const ClothState& s, double h,

@@ -73,10 +73,10 @@ class PcgSolver final : public LinearSolver {
       throw std::invalid_argument("pcg: SSOR takes at most " + std::to_string(kMaxCluster) + " hub rows, not " +
                                   std::to_string(hub_rows.size()) + " (use block-jacobi)");
     sweep_order(A, hub_rows);
-    mf_.with_dinv = md_.with_dinv = ssor_;
-    mf_.dinv_scale = md_.dinv_scale = omega_;
-    if (opt_.single_precision_matrix) mf_.build_pattern(A, hub_rows, rank_);
-    md_.build_pattern(A, hub_rows, rank_);  // also the fallback of the float copy
+    matrix_float_.with_dinv = matrix_double_.with_dinv = ssor_;
+    matrix_float_.dinv_scale = matrix_double_.dinv_scale = omega_;
+    if (opt_.single_precision_matrix) matrix_float_.build_pattern(A, hub_rows, rank_);
+    matrix_double_.build_pattern(A, hub_rows, rank_);  // also the fallback of the float copy
     // SSOR orders the hubs last as one block, whether or not the contact nodes join them.
     hubs_ = opt_.hub_block || ssor_ ? hub_rows : std::vector<int>{};
     local_.assign(nb, -1);
@@ -130,14 +130,14 @@ class PcgSolver final : public LinearSolver {
   // to a whole double solve from the same guess.
   template <class F>
   SolveStatus with_fallback(const SymCsr& A, const double* b, double* x, F&& f) {
-    if (!float_in_use_) return f(md_);
+    if (!float_in_use_) return f(matrix_double_);
     std::copy(x, x + n_, guess_.begin());
-    const SolveStatus st = f(mf_);
+    const SolveStatus st = f(matrix_float_);
     if (st != SolveStatus::NotConverged) return st;
     float_in_use_ = false;
     ++precision_fallbacks_;
     std::copy(guess_.begin(), guess_.begin() + n_, x);
-    return run(md_, A, b, x, true);
+    return run(matrix_double_, A, b, x, true);
   }
 
   template <class T>
@@ -145,7 +145,7 @@ class PcgSolver final : public LinearSolver {
     iterations_ = 0;
     residual_ = 0.0;
     if (load && !prepare(M, A)) return SolveStatus::NotPositiveDefinite;
-    return iterate_any(M, b, x);
+    return iterate_preconditioned(M, b, x);
   }
 
   // A re-solve after a change in a few block rows: those rows reloaded and re-preconditioned,
@@ -155,7 +155,7 @@ class PcgSolver final : public LinearSolver {
   SolveStatus run_changed(Bsr<T>& M, const SymCsr& A, const int* rows, int count, const double* b,
                           double* x) {
     if (!reload_changed(M, A, rows, count)) return SolveStatus::NotPositiveDefinite;
-    return iterate_any(M, b, x);
+    return iterate_preconditioned(M, b, x);
   }
 
   // The listed rows reloaded and re-preconditioned, the hubs' blocks reloaded and the cluster
@@ -190,7 +190,7 @@ class PcgSolver final : public LinearSolver {
 
   // The preconditioner's PCG from the guess in x.
   template <class T>
-  SolveStatus iterate_any(const Bsr<T>& M, const double* b, double* x) {
+  SolveStatus iterate_preconditioned(const Bsr<T>& M, const double* b, double* x) {
     return ssor_ ? iterate_ssor(M, b, x, n_, n_ / 3) : iterate(M, b, x, n_, n_ / 3);
   }
 
@@ -200,7 +200,7 @@ class PcgSolver final : public LinearSolver {
   template <class T>
   SolveStatus settle(Bsr<T>& M, const SymCsr& A, const int* rows, int count, const double* b, double* x) {
     if (!reload_changed(M, A, rows, count)) return SolveStatus::NotPositiveDefinite;
-    if (cluster_.empty()) return iterate_any(M, b, x);
+    if (cluster_.empty()) return iterate_preconditioned(M, b, x);
     double bn2 = 0.0;
     if (const auto settled = start(b, x, n_, bn2)) return *settled;
     settle_cluster(M, b, x, goal_squared(bn2));
@@ -1140,8 +1140,8 @@ class PcgSolver final : public LinearSolver {
   std::array<double, 2> part_sum_{}, part_rz_{};  // the two threads' partial sums, added in order
   int split_ = 0;  // update's two ranges of block rows: [0, split_), [split_, nb)
   WorkerPool* pool_ = nullptr;
-  Bsr<double> md_;
-  Bsr<float> mf_;
+  Bsr<double> matrix_double_;
+  Bsr<float> matrix_float_;
 };
 
 }  // namespace

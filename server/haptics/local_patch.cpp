@@ -13,8 +13,8 @@ LocalPatch::LocalPatch(const std::vector<std::array<int, 3>>& global_tris,
     : gt_(global_tris), rest_(rest_positions), pinned_(pinned), p_(p) {
   const int T = p_.max_triangles;
   const int V = 6 * T + 8, E = 12 * T + 8;
-  ga_.assign(V, 0);
-  gb_.assign(V, 0);
+  edge_end_a_.assign(V, 0);
+  edge_end_b_.assign(V, 0);
   border_.assign(V, 0);
   x_.assign(V, Vec3::Zero());
   v_.assign(V, Vec3::Zero());
@@ -25,13 +25,13 @@ LocalPatch::LocalPatch(const std::vector<std::array<int, 3>>& global_tris,
   edge_.assign(E, {0, 0});
   rest_len_.assign(E, 0.0);
   k_.assign(E, 0.0);
-  kv_.assign(V, 0.0);
+  vertex_stiffness_.assign(V, 0.0);
   sel_.assign(T, 0);
   key_.assign(4 * V, {-1, -1, -1});
   edge_key_.assign(4 * E, {-1, -1, -1});
   uses_.assign(V, 0);
-  wi_.assign(128, 0);
-  ww_.assign(128, 0.0);
+  kernel_vertex_.assign(128, 0);
+  kernel_weight_.assign(128, 0.0);
   x0_.assign(128, Vec3::Zero());
 }
 
@@ -44,8 +44,8 @@ void LocalPatch::rebuild(const ClothSnapshot& s, int finger, const Vec3& c) noex
   springs();
   mark_border(ns);
   for (int v = 0; v < nv_; ++v) {
-    x_[v] = 0.5 * (s.x[ga_[v]] + s.x[gb_[v]]);
-    v_[v] = 0.5 * (s.v[ga_[v]] + s.v[gb_[v]]);
+    x_[v] = 0.5 * (s.x[edge_end_a_[v]] + s.x[edge_end_b_[v]]);
+    v_[v] = 0.5 * (s.v[edge_end_a_[v]] + s.v[edge_end_b_[v]]);
   }
   stable_substeps();
   double el = 0.0;
@@ -98,8 +98,8 @@ int LocalPatch::patch_vertex(int a, int b) noexcept {
   bool added;
   const int v = find_or_add(key_, a, b, nv_, added);
   if (added) {
-    ga_[v] = std::min(a, b);
-    gb_[v] = std::max(a, b);
+    edge_end_a_[v] = std::min(a, b);
+    edge_end_b_[v] = std::max(a, b);
     border_[v] = 0;
     uses_[v] = 0;
     m_[v] = 0.0;
@@ -132,7 +132,7 @@ int LocalPatch::refined_edge(int i, int j) noexcept {
   const int e = find_or_add(edge_key_, i, j, ne_, added);
   if (added) {
     edge_[e] = {std::min(i, j), std::max(i, j)};
-    rest_len_[e] = (0.5 * (rest_[ga_[i]] + rest_[gb_[i]]) - 0.5 * (rest_[ga_[j]] + rest_[gb_[j]])).norm();
+    rest_len_[e] = (0.5 * (rest_[edge_end_a_[i]] + rest_[edge_end_b_[i]]) - 0.5 * (rest_[edge_end_a_[j]] + rest_[edge_end_b_[j]])).norm();
     k_[e] = 0.0;
     ++ne_;
   }
@@ -142,7 +142,7 @@ int LocalPatch::refined_edge(int i, int j) noexcept {
 // Rest geometry, masses (area / 3 per corner) and springs along every refined edge, each edge
 // once, with stiffness E x (adjacent area) / L^2 (a spring network of modulus E).
 void LocalPatch::springs() noexcept {
-  auto rest_of = [&](int v) { return 0.5 * (rest_[ga_[v]] + rest_[gb_[v]]); };
+  auto rest_of = [&](int v) { return 0.5 * (rest_[edge_end_a_[v]] + rest_[edge_end_b_[v]]); };
   ne_ = 0;
   for (auto& k : edge_key_) k = {-1, -1, -1};
   for (int t = 0; t < nt_; ++t) {
@@ -169,7 +169,7 @@ void LocalPatch::mark_border(int ns) noexcept {
     }
   }
   for (int v = 0; v < nv_; ++v)
-    if (pinned_[ga_[v]] || pinned_[gb_[v]]) border_[v] = 1;
+    if (pinned_[edge_end_a_[v]] || pinned_[edge_end_b_[v]]) border_[v] = 1;
 }
 
 // Substeps for a stable explicit step: omega_max h < 2, with omega_max^2 bounded by Gershgorin
@@ -178,15 +178,15 @@ void LocalPatch::mark_border(int ns) noexcept {
 // max_substeps the springs are softened instead: a patch stiffer than the fingertip spring (the
 // device's renderable stiffness) does not change what is felt.
 void LocalPatch::stable_substeps() noexcept {
-  for (int v = 0; v < nv_; ++v) kv_[v] = 0.0;
+  for (int v = 0; v < nv_; ++v) vertex_stiffness_[v] = 0.0;
   for (int e = 0; e < ne_; ++e) {
-    kv_[edge_[e][0]] += k_[e];
-    kv_[edge_[e][1]] += k_[e];
+    vertex_stiffness_[edge_[e][0]] += k_[e];
+    vertex_stiffness_[edge_[e][1]] += k_[e];
   }
   double w2_springs = 0.0, m_min = 1e300;
   for (int v = 0; v < nv_; ++v) {
     if (border_[v] || m_[v] <= 0.0) continue;
-    w2_springs = std::max(w2_springs, 2.0 * kv_[v] / m_[v]);
+    w2_springs = std::max(w2_springs, 2.0 * vertex_stiffness_[v] / m_[v]);
     m_min = std::min(m_min, m_[v]);
   }
   const double tick = p_.haptic_period;
@@ -208,8 +208,8 @@ void LocalPatch::border_positions(const ClothSnapshot& s, double now) noexcept {
   const double dt = std::clamp(now - s.time, 0.0, 0.1);
   for (int v = 0; v < nv_; ++v) {
     if (!border_[v]) continue;
-    const Vec3 vel = 0.5 * (s.v[ga_[v]] + s.v[gb_[v]]);
-    x_[v] = 0.5 * (s.x[ga_[v]] + s.x[gb_[v]]) + dt * vel;  // constant velocity (4.2)
+    const Vec3 vel = 0.5 * (s.v[edge_end_a_[v]] + s.v[edge_end_b_[v]]);
+    x_[v] = 0.5 * (s.x[edge_end_a_[v]] + s.x[edge_end_b_[v]]) + dt * vel;  // constant velocity (4.2)
     v_[v] = vel;
   }
 }
@@ -260,26 +260,26 @@ LocalPatch::Kernel LocalPatch::contact_kernel(const PatchTouch& touch) noexcept 
   const double R = std::max(touch.r, 1.5 * edge_mean_), R2 = R * R;
   double sum = 0.0;
   int& nw = K.n;
-  for (int v = 0; v < nv_ && nw < static_cast<int>(wi_.size()); ++v) {
+  for (int v = 0; v < nv_ && nw < static_cast<int>(kernel_vertex_.size()); ++v) {
     const double d2 = (x_[v] - K.q0).squaredNorm();
     if (d2 >= R2 || border_[v]) continue;
     const double u = 1.0 - d2 / R2;
-    wi_[nw] = v;
-    ww_[nw] = m_[v] * u * u;
+    kernel_vertex_[nw] = v;
+    kernel_weight_[nw] = m_[v] * u * u;
     x0_[nw] = x_[v];
-    sum += ww_[nw];
+    sum += kernel_weight_[nw];
     ++nw;
   }
   if (sum <= 0.0) {
     nw = 0;
     for (int kk = 0; kk < 3; ++kk) {
-      wi_[nw] = t[kk];
-      ww_[nw] = b[kk];
+      kernel_vertex_[nw] = t[kk];
+      kernel_weight_[nw] = b[kk];
       x0_[nw] = x_[t[kk]];
       ++nw;
     }
   } else {
-    for (int i = 0; i < nw; ++i) ww_[i] /= sum;
+    for (int i = 0; i < nw; ++i) kernel_weight_[i] /= sum;
   }
   return K;
 }
@@ -305,13 +305,13 @@ Vec3 LocalPatch::contact_forces(const PatchTouch& touch, const Kernel& K, Vec3& 
   const Vec3& c = touch.c;
   const double k = touch.k;
   Vec3 q = K.q0;
-  for (int i = 0; i < K.n; ++i) q += ww_[i] * (x_[wi_[i]] - x0_[i]);
+  for (int i = 0; i < K.n; ++i) q += kernel_weight_[i] * (x_[kernel_vertex_[i]] - x0_[i]);
   const Vec3& nn = K.n0;
   const double depth = touch.r - (c - q).dot(nn);
   // Normal spring plus damping of the touched point's motion relative to the fingertip: the
   // refined vertices are light, and the contact spring alone would ring at kHz.
   Vec3 vq = Vec3::Zero();
-  for (int i = 0; i < K.n; ++i) vq += ww_[i] * v_[wi_[i]];
+  for (int i = 0; i < K.n; ++i) vq += kernel_weight_[i] * v_[kernel_vertex_[i]];
   const double fn = depth > 0.0 ? std::max(0.0, k * depth + p_.contact_damping * (vq - touch.vc).dot(nn)) : 0.0;
   // Friction: the anchor rides with the touched point; the spring to it sticks up to mu fn.
   anchor += q - q_prev;
@@ -326,7 +326,7 @@ Vec3 LocalPatch::contact_forces(const PatchTouch& touch, const Kernel& K, Vec3& 
   }
   anchor = c + ft / k + (anchor - c).dot(nn) * nn;
   const Vec3 Fu = fn * nn + ft;  // on the user's finger
-  for (int i = 0; i < K.n; ++i) f_[wi_[i]] -= ww_[i] * Fu;
+  for (int i = 0; i < K.n; ++i) f_[kernel_vertex_[i]] -= kernel_weight_[i] * Fu;
   return Fu;
 }
 
@@ -338,7 +338,7 @@ void LocalPatch::integrate(const ClothSnapshot& s, double h) noexcept {
       x_[v] += h * v_[v];
       continue;
     }
-    const Vec3 vg = 0.5 * (s.v[ga_[v]] + s.v[gb_[v]]);
+    const Vec3 vg = 0.5 * (s.v[edge_end_a_[v]] + s.v[edge_end_b_[v]]);
     v_[v] += h * (f_[v] / m_[v] - p_.damping * (v_[v] - vg));
     x_[v] += h * v_[v];
   }

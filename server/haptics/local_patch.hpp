@@ -88,7 +88,7 @@ class LocalPatch {
 
  private:
   // The contact kernel of a tick: the touched point q0 and its normal n0 at the start of the
-  // tick, over n vertices (wi_, ww_, x0_).
+  // tick, over n vertices (kernel_vertex_, kernel_weight_, x0_).
   struct Kernel {
     int n = 0;
     Vec3 q0 = Vec3::Zero(), n0 = Vec3::UnitZ();
@@ -116,8 +116,8 @@ class LocalPatch {
   PatchParams p_;
   Vec3 centre_ = Vec3::Zero();
   int nt_ = 0, nv_ = 0, ne_ = 0;
-  // Patch vertices: either a global vertex (ga = gb) or the midpoint of global edge (ga, gb).
-  std::vector<int> ga_, gb_;
+  // Patch vertices: either a global vertex (a = b) or the midpoint of global edge (a, b): edge_end_a_, edge_end_b_.
+  std::vector<int> edge_end_a_, edge_end_b_;
   std::vector<char> border_;
   std::vector<Vec3> x_, v_, n_, f_;
   std::vector<double> m_;
@@ -125,15 +125,15 @@ class LocalPatch {
   std::vector<std::array<int, 2>> edge_;
   std::vector<double> rest_len_, k_;
   std::vector<int> sel_;                    // selected global triangles
-  std::vector<std::array<int, 3>> key_;     // hash table (ga, gb, patch vertex)
+  std::vector<std::array<int, 3>> key_;     // hash table (edge end a, edge end b, patch vertex)
   std::vector<std::array<int, 3>> edge_key_;  // hash table (i, j, refined edge)
   std::vector<int> uses_;                   // per midpoint vertex: selected triangles on its edge
   double edge_mean_ = 0.0;
   int substeps_ = 32;                       // this build's substeps per tick
   double spring_scale_ = 1.0;               // < 1: springs softened for stability
-  std::vector<double> kv_;                  // per vertex: sum of its springs' stiffness
-  std::vector<int> wi_;                     // contact kernel: vertices, weights, start positions
-  std::vector<double> ww_;
+  std::vector<double> vertex_stiffness_;                  // per vertex: sum of its springs' stiffness
+  std::vector<int> kernel_vertex_;                     // contact kernel: vertices, weights, start positions
+  std::vector<double> kernel_weight_;
   std::vector<Vec3> x0_;
 };
 

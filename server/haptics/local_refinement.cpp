@@ -103,12 +103,12 @@ void LocalRefinement::update(const RefinementInput& step) {
     if (fresh) build_child(f, *at[f], step.x);
     else child_[f]->follow(step.x);
     // The other fingertips touching this child's cloth push on it too (a pinch).
-    std::array<ChildFinger, kMaxFingers> mine{};
+    std::array<ChildFinger, kMaxFingers> in_child{};
     const auto& region = child_[f]->mesh().region;
     for (int g = 0; g < fingers; ++g)
-      if (in[g].in && std::binary_search(region.begin(), region.end(), at[g]->tri)) mine[g] = in[g];
-    child_[f]->settle(mine, fresh ? 4 * p_.iterations : p_.iterations);
-    compliance_[f] = std::min(std::max(0.0, series_depth(*child_[f], f, mine)) / in[f].force, p_.max_compliance);
+      if (in[g].in && std::binary_search(region.begin(), region.end(), at[g]->tri)) in_child[g] = in[g];
+    child_[f]->settle(in_child, fresh ? 4 * p_.iterations : p_.iterations);
+    compliance_[f] = std::min(std::max(0.0, series_depth(*child_[f], f, in_child)) / in[f].force, p_.max_compliance);
   }
 }
 
@@ -121,10 +121,10 @@ void LocalRefinement::update(const RefinementInput& step) {
 // each finger's own depth, the lower finger of a held handkerchief got 1.3 mm of compliance and
 // the upper none, so the upper fingertip lost the cloth and the pinch became a drape.)
 double LocalRefinement::series_depth(const RefinedContact& child, int f,
-                                     const std::array<ChildFinger, kMaxFingers>& mine) const {
+                                     const std::array<ChildFinger, kMaxFingers>& in_child) const {
   const double own = child.extra_depth(f);
   for (int g = 0; g < kMaxFingers; ++g)
-    if (g != f && mine[g].in && mine[f].normal.dot(mine[g].normal) < -0.5)
+    if (g != f && in_child[g].in && in_child[f].normal.dot(in_child[g].normal) < -0.5)
       return 0.5 * (own + child.extra_depth(g));
   return own;
 }

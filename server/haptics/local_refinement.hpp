@@ -89,7 +89,7 @@ class LocalRefinement {
  private:
   std::optional<ClothPoint> touched_point(const ProxyResult& r) const;
   void build_child(int f, const ClothPoint& at, const std::vector<Vec3>& x);
-  double series_depth(const RefinedContact& child, int f, const std::array<ChildFinger, kMaxFingers>& mine) const;
+  double series_depth(const RefinedContact& child, int f, const std::array<ChildFinger, kMaxFingers>& in_child) const;
 
   const cloth::ClothModel& g_;
   ContactParams cp_;

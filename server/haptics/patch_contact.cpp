@@ -14,8 +14,8 @@ PatchContact::PatchContact(const std::vector<std::array<int, 3>>& tris,
 }
 
 // Separated: the patch still steps (it carries its own state between global steps).
-void PatchContact::release(LocalPatch& patch, const ClothSnapshot& s, double now,
-                           const PatchTouch& t, Proxy& P) noexcept {
+void PatchContact::step_untouched(LocalPatch& patch, const ClothSnapshot& s, double now,
+                                  const PatchTouch& t, Proxy& P) noexcept {
   PatchTouch free = t;
   free.contact = false;
   free.tri = -1;
@@ -53,7 +53,7 @@ void PatchContact::touch(const ClothSnapshot& s, double now, double, const Finge
   for (int i = 0; i < 3; ++i) t.b[i] = sp.bary[i];
   const bool on = pressing(P, f, c, (c - sp.point).dot(sp.normal), std::sqrt(sp.dist2));
   t.side = P.side;
-  if (!on) return release(patch, s, now, t, P);
+  if (!on) return step_untouched(patch, s, now, t, P);
   t.contact = true;
   t.tri = sp.triangle;
   render(patch, s, now, t, sp, P, out);

@@ -34,8 +34,8 @@ class PatchContact final : public SurfaceContact {
   bool pressing(Proxy& P, int finger, const Vec3& c, double h, double dist) noexcept;
   void render(LocalPatch& patch, const ClothSnapshot& s, double now, const PatchTouch& t,
               const SurfacePoint& sp, Proxy& P, FingerReport& out) noexcept;
-  void release(LocalPatch& patch, const ClothSnapshot& s, double now, const PatchTouch& t,
-               Proxy& P) noexcept;
+  void step_untouched(LocalPatch& patch, const ClothSnapshot& s, double now, const PatchTouch& t,
+                      Proxy& P) noexcept;
 
   const std::vector<std::array<int, 3>>& tris_;
   std::vector<std::unique_ptr<LocalPatch>> patch_;
