@@ -333,16 +333,9 @@ void Integrator::assemble_proxies(const ClothState& s, double h) {
   for (int j = 0; j < cfg_.proxies; ++j) {
     const ProxyNode& p = proxies_[j];
     const int node = nf + j;
-    if (p.axis_stiffness > 0.0) {  // anisotropic: K = stiffness_matrix()
-      const Mat3 K = p.stiffness_matrix();
-      add_block(val, sys_.diag_offset[node], sys_.row_stride[node],
-                aahh * K + ah * p.damping * Mat3::Identity());
-      rhs_.segment<3>(3 * node) += h * (K * (p.target - p.x) + p.damping * p.target_velocity);
-      continue;
-    }
-    add_block(val, sys_.diag_offset[node], sys_.row_stride[node],
-              (aahh * p.stiffness + ah * p.damping) * Mat3::Identity());
-    rhs_.segment<3>(3 * node) += h * (p.stiffness * (p.target - p.x) + p.damping * p.target_velocity);
+    const Mat3 K = p.stiffness_matrix();  // k I, or anisotropic along p.axis
+    add_block(val, sys_.diag_offset[node], sys_.row_stride[node], aahh * K + ah * p.damping * Mat3::Identity());
+    rhs_.segment<3>(3 * node) += h * (K * (p.target - p.x) + p.damping * p.target_velocity);
   }
   add_springs(s, h, springs_, 1.0);
 }
