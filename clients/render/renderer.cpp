@@ -361,34 +361,11 @@ void draw_colorbar(Image& img, int x0, const Style& style, int s) {
   }
 }
 
-}  // namespace
-
-Image Renderer::render(const Scene& scene, const ClothFrame& frame, const HapticTick* haptics, const Camera& cam,
-                       const Style& style) {
-  Impl& im = *impl_;
-  const int W = width_ * ss_, H = height_ * ss_;
-  if (!OSMesaMakeCurrent(im.ctx, im.buffer.data(), GL_UNSIGNED_BYTE, W, H))
-    throw std::runtime_error("OSMesa: cannot make the context current");
-  if (frame.positions.size() != scene.rest_positions.size())
-    throw std::invalid_argument("cloth state has " + std::to_string(frame.positions.size()) +
-                                " vertices, the mesh " + std::to_string(scene.rest_positions.size()));
-  const bool draw_fingers = style.fingers && haptics;
-  const Projection P = projection(cam, style, framing_points(frame, haptics, style));
-  const Viewport& vp = P.viewport;
-
-  glViewport(vp.x * ss_, (height_ - vp.y - vp.height) * ss_, vp.width * ss_, vp.height * ss_);
-  glClearColor(style.background[0] / 255.0f, style.background[1] / 255.0f, style.background[2] / 255.0f, 1.0f);
-  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  glEnable(GL_DEPTH_TEST);
-  glDepthMask(GL_TRUE);
-  glDisable(GL_CULL_FACE);
-  glShadeModel(GL_SMOOTH);
-  glMatrixMode(GL_PROJECTION);
-  glLoadMatrixd(P.proj.data());
+// Lights in eye space: a key light from the upper left, a weaker fill from the right; then the
+// view, and a material with a little specular shine.
+void set_lights(const Projection& P) {
   glMatrixMode(GL_MODELVIEW);
   glLoadIdentity();
-
-  // Lights in eye space: a key light from the upper left, a weaker fill from the right.
   const GLfloat key_dir[] = {-0.45f, 0.6f, 0.75f, 0.0f}, fill_dir[] = {0.7f, -0.2f, 0.5f, 0.0f};
   const GLfloat key[] = {0.72f, 0.72f, 0.7f, 1.0f}, fill[] = {0.25f, 0.25f, 0.27f, 1.0f};
   const GLfloat spec[] = {0.12f, 0.12f, 0.12f, 1.0f}, none[] = {0, 0, 0, 1}, ambient[] = {0.3f, 0.3f, 0.3f, 1.0f};
@@ -410,11 +387,10 @@ Image Renderer::render(const Scene& scene, const ClothFrame& frame, const Haptic
   const GLfloat white[] = {1, 1, 1, 1};
   glMaterialfv(GL_FRONT_AND_BACK, GL_SPECULAR, white);
   glMaterialf(GL_FRONT_AND_BACK, GL_SHININESS, 24.0f);
+}
 
-  // --- the cloth: per-vertex normals, per-triangle colour or the weave texture; the refined
-  // children under the fingertips in place of the global triangles they stand in for.
-  const bool textured = style.color == ColorMode::Weave;
-  const RefinedFrame& refined = frame.refined;
+// The global triangles a refined child stands in for, not drawn.
+std::vector<bool> hidden_triangles(const Scene& scene, const RefinedFrame& refined) {
   std::vector<bool> hidden(scene.triangles.size(), false);
   for (const int t : refined.region) {
     if (t < 0 || static_cast<std::size_t>(t) >= hidden.size())
@@ -422,8 +398,47 @@ Image Renderer::render(const Scene& scene, const ClothFrame& frame, const Haptic
                                   std::to_string(hidden.size()));
     hidden[t] = true;
   }
+  return hidden;
+}
+
+// The springs between proxies and device positions: unlit lines.
+void draw_springs(const HapticTick& haptics, int ss) {
+  glDisable(GL_LIGHTING);
+  glLineWidth(static_cast<float>(ss));
+  glBegin(GL_LINES);
+  for (const FingerSample& s : haptics.fingers) {
+    glColor3f(0.25f, 0.25f, 0.25f);
+    glVertex3f(s.proxy.x(), s.proxy.y(), s.proxy.z());
+    glVertex3f(s.position.x(), s.position.y(), s.position.z());
+  }
+  glEnd();
+  glEnable(GL_LIGHTING);
+}
+
+}  // namespace
+
+// The viewport, cleared, with the projection of `P`.
+void Renderer::begin_frame(const Projection& P, const Style& style) {
+  const Viewport& vp = P.viewport;
+  glViewport(vp.x * ss_, (height_ - vp.y - vp.height) * ss_, vp.width * ss_, vp.height * ss_);
+  glClearColor(style.background[0] / 255.0f, style.background[1] / 255.0f, style.background[2] / 255.0f, 1.0f);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  glEnable(GL_DEPTH_TEST);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_CULL_FACE);
+  glShadeModel(GL_SMOOTH);
+  glMatrixMode(GL_PROJECTION);
+  glLoadMatrixd(P.proj.data());
+}
+
+// The cloth: per-vertex normals, per-triangle colour or the weave texture; the refined children
+// under the fingertips in place of the global triangles they stand in for.
+void Renderer::draw_cloth(const Scene& scene, const ClothFrame& frame, const Style& style) {
+  Impl& im = *impl_;
+  const bool textured = style.color == ColorMode::Weave;
+  const RefinedFrame& refined = frame.refined;
   im.cloth.clear();
-  add_cloth(im.cloth, scene, frame.positions, hidden, style);
+  add_cloth(im.cloth, scene, frame.positions, hidden_triangles(scene, refined), style);
   if (!refined.empty()) add_cloth(im.cloth, refined.mesh, refined.positions, {}, style);
   if (textured) {
     glEnable(GL_TEXTURE_2D);
@@ -437,57 +452,66 @@ Image Renderer::render(const Scene& scene, const ClothFrame& frame, const Haptic
   glDisable(GL_POLYGON_OFFSET_FILL);
   glDisable(GL_TEXTURE_2D);
   if (style.refined_edges && !refined.empty()) draw_edges(refined.mesh, refined.positions, ss_);
+}
 
-  // --- fingertips: the proxy solid, the device position as a translucent ghost, the spring
-  // between them and the force on the finger as an arrow from the proxy.
-  if (draw_fingers) {
-    im.solid.clear();
-    im.ghost.clear();
-    const float r = static_cast<float>(style.finger_radius);
-    for (std::size_t f = 0; f < haptics->fingers.size(); ++f) {
-      const FingerSample& s = haptics->fingers[f];
-      add_sphere(im.solid, s.proxy, r, rgba(finger_color(f)));
-      add_sphere(im.ghost, s.position, r, rgba(finger_color(f), 0.35f));
-      const float fl = s.force.norm(), len = static_cast<float>(style.force_scale) * fl;
-      if (len > 0.3f * r) {
-        const Eigen::Vector3f dir = s.force / fl;
-        add_arrow(im.solid, s.proxy + dir * r, dir, len, 0.25f * r, rgba(kArrowColor));
-      }
+// The fingertips: the proxy solid, the device position as a translucent ghost, the spring
+// between them and the force on the finger as an arrow from the proxy.
+void Renderer::draw_fingertips(const HapticTick& haptics, const Style& style) {
+  Impl& im = *impl_;
+  im.solid.clear();
+  im.ghost.clear();
+  const float r = static_cast<float>(style.finger_radius);
+  for (std::size_t f = 0; f < haptics.fingers.size(); ++f) {
+    const FingerSample& s = haptics.fingers[f];
+    add_sphere(im.solid, s.proxy, r, rgba(finger_color(f)));
+    add_sphere(im.ghost, s.position, r, rgba(finger_color(f), 0.35f));
+    const float fl = s.force.norm(), len = static_cast<float>(style.force_scale) * fl;
+    if (len > 0.3f * r) {
+      const Eigen::Vector3f dir = s.force / fl;
+      add_arrow(im.solid, s.proxy + dir * r, dir, len, 0.25f * r, rgba(kArrowColor));
     }
-    im.solid.draw(false);
-    // The spring: unlit lines.
-    glDisable(GL_LIGHTING);
-    glLineWidth(static_cast<float>(ss_));
-    glBegin(GL_LINES);
-    for (const FingerSample& s : haptics->fingers) {
-      glColor3f(0.25f, 0.25f, 0.25f);
-      glVertex3f(s.proxy.x(), s.proxy.y(), s.proxy.z());
-      glVertex3f(s.position.x(), s.position.y(), s.position.z());
-    }
-    glEnd();
-    glEnable(GL_LIGHTING);
-    glEnable(GL_BLEND);
-    glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
-    glDepthMask(GL_FALSE);
-    im.ghost.draw(false);
-    glDepthMask(GL_TRUE);
-    glDisable(GL_BLEND);
   }
-  glFinish();
+  im.solid.draw(false);
+  draw_springs(haptics, ss_);
+  glEnable(GL_BLEND);
+  glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+  glDepthMask(GL_FALSE);
+  im.ghost.draw(false);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_BLEND);
+}
 
-  // --- read back (OSMesa rows are bottom-up), average the supersamples
+// The picture (OSMesa rows are bottom-up), the supersamples averaged.
+Image Renderer::read_back() const {
+  const int W = width_ * ss_, H = height_ * ss_;
   Image big(W, H);
   for (int y = 0; y < H; ++y) {
-    const std::uint8_t* src = &im.buffer[static_cast<std::size_t>(H - 1 - y) * W * 4];
+    const std::uint8_t* src = &impl_->buffer[static_cast<std::size_t>(H - 1 - y) * W * 4];
     std::uint8_t* dst = &big.rgb[static_cast<std::size_t>(y) * W * 3];
     for (int xx = 0; xx < W; ++xx)
       for (int k = 0; k < 3; ++k) dst[3 * xx + k] = src[4 * xx + k];
   }
-  Image img = downsample(big, ss_);
+  return downsample(big, ss_);
+}
+
+Image Renderer::render(const Scene& scene, const ClothFrame& frame, const HapticTick* haptics, const Camera& cam,
+                       const Style& style) {
+  if (!OSMesaMakeCurrent(impl_->ctx, impl_->buffer.data(), GL_UNSIGNED_BYTE, width_ * ss_, height_ * ss_))
+    throw std::runtime_error("OSMesa: cannot make the context current");
+  if (frame.positions.size() != scene.rest_positions.size())
+    throw std::invalid_argument("cloth state has " + std::to_string(frame.positions.size()) +
+                                " vertices, the mesh " + std::to_string(scene.rest_positions.size()));
+  const bool draw_fingers = style.fingers && haptics;
+  const Projection P = projection(cam, style, framing_points(frame, haptics, style));
+  const Viewport& vp = P.viewport;
+  begin_frame(P, style);
+  set_lights(P);
+  draw_cloth(scene, frame, style);
+  if (draw_fingers) draw_fingertips(*haptics, style);
+  glFinish();
+  Image img = read_back();
   // Outside the viewport (the colour bar's strip) glClear did not reach: paint it.
   fill_rect(img, vp.x + vp.width, 0, width_, height_, style.background);
-
-  // --- overlays
   const int s = text_scale(height_);
   if (style.label) draw_label(img, scene, frame, draw_fingers ? haptics : nullptr, style, s);
   if (shows_colorbar(style)) draw_colorbar(img, vp.x + vp.width + 4 * s, style, s);

@@ -64,6 +64,11 @@ class Renderer {
 
  private:
   struct Impl;
+  void begin_frame(const Projection& P, const Style& style);
+  void draw_cloth(const Scene& scene, const ClothFrame& frame, const Style& style);
+  void draw_fingertips(const HapticTick& haptics, const Style& style);
+  Image read_back() const;
+
   int width_, height_, ss_;
   std::unique_ptr<Impl> impl_;
 };

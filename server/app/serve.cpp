@@ -328,65 +328,68 @@ std::string platform_line(const devices::TimerFigures& t) {
   return os.str();
 }
 
-// The summary: the session's report with the device's, the gate's, the cloth's and the
-// transport's counters, as text or one JSON object.
-void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHandle& dev,
-            const Plan& p, haptics::Session& session, const transport::Hub& hub,
-            const haptics::TactileTrace* trace, const std::string& stopped, std::ostream& out) {
-  const haptics::SessionReport r = session.report();
+// The device's counters, with each part's of a composite device and the record's, as JSON.
+void device_json(const Scene& scene, const devices::DeviceHandle& dev, nlohmann::json& j) {
   const auto& dc = dev.device().counters();
   const std::string& record = scene.device.record_path;
   const std::string record_error = dev.last_error();
-  const auto& gc = session.gate().counters();
-  const auto& ev = session.sim().integrator().events();
-  const transport::HubStats hs = hub.stats();
-  if (opt.json) {
-    nlohmann::json j = nlohmann::json::parse(r.to_json());
-    j["scene"] = scene.name;
-    j["device"] = dev.info().name;
-    j["stages"] = p.stages;
-    j["notes"] = scene.notes;
-    j["device_counters"] = {{"samples", dc.samples}, {"dropped", dc.dropped_total()},
-                            {"dropped_backlog", dc.dropped_backlog}, {"dropped_stale", dc.dropped_stale},
-                            {"dropped_other_sender", dc.dropped_other_sender},
-                            {"send_errors", dc.send_errors}, {"tactile_sent", dc.tactile_sent}};
-    if (!record.empty())
-      j["record"] = {{"path", record}, {"rows", dc.record_rows}, {"dropped", dc.record_dropped},
-                     {"error", record_error.empty() ? nlohmann::json(nullptr) : nlohmann::json(record_error)}};
-    j["device_parts"] = nlohmann::json::array();
-    for (int i = 0; i < dev.device().part_count(); ++i) {
-      const devices::Device& part = dev.device().part(i);
-      const auto& pc = part.counters();
-      const devices::GateCounters* pg = dev.device().part_gate(i);
-      j["device_parts"].push_back({{"name", part.info().name}, {"samples", pc.samples},
-                                   {"dropped", pc.dropped_total()}, {"dropped_stale", pc.dropped_stale},
-                                   {"dropped_other_sender", pc.dropped_other_sender},
-                                   {"stale_events", pg ? pg->stale_events : 0}});
-    }
-    j["gate"] = {{"non_finite", gc.non_finite}, {"clamped", gc.clamped},
-                 {"slew_limited", gc.slew_limited}, {"stale_events", gc.stale_events}};
-    j["integrator_events"] = ev.total();
-    if (trace) j["tactile"]["strokes"] = trace->to_json();
-    j["trajectory_commands"] = {{"accepted", hs.commands_accepted}, {"rejected", hs.commands_rejected}};
-    j["stopped"] = stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(stopped);
-    if (const transport::FoxgloveSink* fox = hub.foxglove()) {
-      nlohmann::json f = {{"port", fox->port()}, {"mcap", hub.options().mcap}, {"undecodable", fox->undecodable()}};
-      for (int c = 0; c < transport::FoxgloveSink::kChannels; ++c) {
-        const auto ch = static_cast<transport::FoxgloveSink::Channel>(c);
-        f["messages"][transport::FoxgloveSink::channel_name(ch)] = fox->written(ch);
-      }
-      j["foxglove"] = f;
-    }
-    if (p.platform) {
-      j["platform_timer"] = p.platform->to_json();
-      j["period_error_p99_excess_us"] = r.haptic.period_error_us.quantile(0.99) - p.platform->p99_us;
-    }
-    out << j.dump() << "\n";
-    return;
+  j["device"] = dev.info().name;
+  j["device_counters"] = {{"samples", dc.samples}, {"dropped", dc.dropped_total()},
+                          {"dropped_backlog", dc.dropped_backlog}, {"dropped_stale", dc.dropped_stale},
+                          {"dropped_other_sender", dc.dropped_other_sender},
+                          {"send_errors", dc.send_errors}, {"tactile_sent", dc.tactile_sent}};
+  if (!record.empty())
+    j["record"] = {{"path", record}, {"rows", dc.record_rows}, {"dropped", dc.record_dropped},
+                   {"error", record_error.empty() ? nlohmann::json(nullptr) : nlohmann::json(record_error)}};
+  j["device_parts"] = nlohmann::json::array();
+  for (int i = 0; i < dev.device().part_count(); ++i) {
+    const devices::Device& part = dev.device().part(i);
+    const auto& pc = part.counters();
+    const devices::GateCounters* pg = dev.device().part_gate(i);
+    j["device_parts"].push_back({{"name", part.info().name}, {"samples", pc.samples},
+                                 {"dropped", pc.dropped_total()}, {"dropped_stale", pc.dropped_stale},
+                                 {"dropped_other_sender", pc.dropped_other_sender},
+                                 {"stale_events", pg ? pg->stale_events : 0}});
   }
-  out << r.to_text();
-  if (trace) out << trace->to_text();
-  if (p.platform) out << platform_line(*p.platform);
+}
+
+// The summary as one JSON object: the session's report with the device's, the gate's, the
+// cloth's and the transport's counters.
+void report_json(const Scene& scene, const devices::DeviceHandle& dev, const Plan& p, haptics::Session& session,
+                 const transport::Hub& hub, const haptics::TactileTrace* trace, const std::string& stopped,
+                 std::ostream& out) {
+  const haptics::SessionReport r = session.report();
+  const auto& gc = session.gate().counters();
+  const transport::HubStats hs = hub.stats();
+  nlohmann::json j = nlohmann::json::parse(r.to_json());
+  j["scene"] = scene.name;
+  j["stages"] = p.stages;
+  j["notes"] = scene.notes;
+  device_json(scene, dev, j);
+  j["gate"] = {{"non_finite", gc.non_finite}, {"clamped", gc.clamped},
+               {"slew_limited", gc.slew_limited}, {"stale_events", gc.stale_events}};
+  j["integrator_events"] = session.sim().integrator().events().total();
+  if (trace) j["tactile"]["strokes"] = trace->to_json();
+  j["trajectory_commands"] = {{"accepted", hs.commands_accepted}, {"rejected", hs.commands_rejected}};
+  j["stopped"] = stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(stopped);
+  if (const transport::FoxgloveSink* fox = hub.foxglove()) {
+    nlohmann::json f = {{"port", fox->port()}, {"mcap", hub.options().mcap}, {"undecodable", fox->undecodable()}};
+    for (int c = 0; c < transport::FoxgloveSink::kChannels; ++c) {
+      const auto ch = static_cast<transport::FoxgloveSink::Channel>(c);
+      f["messages"][transport::FoxgloveSink::channel_name(ch)] = fox->written(ch);
+    }
+    j["foxglove"] = f;
+  }
+  if (p.platform) {
+    j["platform_timer"] = p.platform->to_json();
+    j["period_error_p99_excess_us"] = r.haptic.period_error_us.quantile(0.99) - p.platform->p99_us;
+  }
+  out << j.dump() << "\n";
+}
+
+// The device's counters as text, and each part's of a composite device.
+void device_text(const devices::DeviceHandle& dev, std::ostream& out) {
+  const auto& dc = dev.device().counters();
   out << "device counters  samples " << dc.samples << ", dropped " << dc.dropped_total()
       << " (malformed " << dc.dropped_malformed << ", version " << dc.dropped_version
       << ", duplicate " << dc.dropped_duplicate << ", reordered " << dc.dropped_reordered
@@ -394,7 +397,7 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
       << dc.dropped_backlog << ", stale " << dc.dropped_stale << ", other sender "
       << dc.dropped_other_sender << ")" << (dc.tactile_sent ? ", tactile packets sent " + std::to_string(dc.tactile_sent) : "")
       << "\n";
-  for (int i = 0; i < dev.device().part_count(); ++i) {  // a composite device: each part's own
+  for (int i = 0; i < dev.device().part_count(); ++i) {
     const devices::Device& part = dev.device().part(i);
     const auto& pc = part.counters();
     const devices::GateCounters* pg = dev.device().part_gate(i);
@@ -403,9 +406,24 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
         << ", stale " << pc.dropped_stale << ", other sender " << pc.dropped_other_sender
         << "), watchdog stale events " << (pg ? pg->stale_events : 0) << "\n";
   }
+}
+
+// The summary as text, one line a part.
+void report_text(const Scene& scene, const devices::DeviceHandle& dev, const Plan& p, haptics::Session& session,
+                 const transport::Hub& hub, const haptics::TactileTrace* trace, const std::string& stopped,
+                 std::ostream& out) {
+  const auto& dc = dev.device().counters();
+  const std::string& record = scene.device.record_path;
+  const std::string record_error = dev.last_error();
+  const auto& gc = session.gate().counters();
+  const transport::HubStats hs = hub.stats();
+  out << session.report().to_text();
+  if (trace) out << trace->to_text();
+  if (p.platform) out << platform_line(*p.platform);
+  device_text(dev, out);
   out << "safety gate      non-finite " << gc.non_finite << ", clamped " << gc.clamped
       << ", slew-limited " << gc.slew_limited << ", stale events " << gc.stale_events << "\n";
-  out << "cloth events     " << ev.total() << "\n";
+  out << "cloth events     " << session.sim().integrator().events().total() << "\n";
   out << "trajectory cmds  accepted " << hs.commands_accepted << ", rejected " << hs.commands_rejected << "\n";
   if (!record.empty())
     out << "device record    " << record << ": " << dc.record_rows << " rows, " << dc.record_dropped
@@ -413,6 +431,15 @@ void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHa
   if (const transport::FoxgloveSink* fox = hub.foxglove())
     out << "foxglove         " << foxglove_counts(*fox) << " messages" << "\n";
   if (!stopped.empty()) out << "stopped          " << stopped << "\n";
+}
+
+// The summary: the session's report with the device's, the gate's, the cloth's and the
+// transport's counters, as text or one JSON object.
+void report(const Scene& scene, const ServeOptions& opt, const devices::DeviceHandle& dev,
+            const Plan& p, haptics::Session& session, const transport::Hub& hub,
+            const haptics::TactileTrace* trace, const std::string& stopped, std::ostream& out) {
+  if (opt.json) report_json(scene, dev, p, session, hub, trace, stopped, out);
+  else report_text(scene, dev, p, session, hub, trace, stopped, out);
 }
 
 // 1 if the device failed during the session (a driver Error turned its handle Failed), its

@@ -33,6 +33,109 @@ struct ChildTri {
   int parent;
   std::array<Bary, 3> b;  // each corner in the parent
 };
+
+int add_child_vertex(RefinedMesh& out, const Vec3& rest, const ClothPoint& at) {
+  out.mesh.positions.push_back(rest);
+  out.at.push_back(at);
+  return static_cast<int>(out.at.size()) - 1;
+}
+
+// The region's global triangles as the first children, their vertices the first child vertices.
+std::vector<ChildTri> seed_children(const cloth::ClothModel& g, RefinedMesh& out) {
+  std::unordered_map<int, int> child_of;
+  std::vector<ChildTri> tris;
+  for (int t : out.region) {
+    ChildTri ct{{0, 0, 0}, t, {}};
+    for (int k = 0; k < 3; ++k) {
+      const int gv = g.triangles[t][k];
+      Bary b{0.0, 0.0, 0.0};
+      b[k] = 1.0;
+      auto it = child_of.find(gv);
+      if (it == child_of.end()) it = child_of.emplace(gv, add_child_vertex(out, g.rest_positions[gv], {t, b})).first;
+      ct.v[k] = it->second;
+      ct.b[k] = b;
+    }
+    tris.push_back(ct);
+  }
+  return tris;
+}
+
+// Rivara's longest-edge bisection toward the contact point `c`: a child is split across its
+// longest edge while that edge is longer than max(finest, grading x its distance from c), or
+// while a neighbour's split left a midpoint on one of its edges (no hanging vertices).
+void bisect_toward(const Vec3& c, const RefineSpec& spec, std::vector<ChildTri>& tris, RefinedMesh& out) {
+  std::unordered_map<std::uint64_t, int> midpoint;
+  const auto& P = out.mesh.positions;
+  auto longest = [&](const ChildTri& t) {
+    int k = 0;
+    double best = -1.0;
+    for (int e = 0; e < 3; ++e) {
+      const double l = (P[t.v[e]] - P[t.v[(e + 1) % 3]]).squaredNorm();
+      if (l > best) best = l, k = e;
+    }
+    return std::make_pair(k, std::sqrt(best));
+  };
+  auto too_big = [&](const ChildTri& t) {
+    const double l = longest(t).second;
+    const Vec3 centroid = (P[t.v[0]] + P[t.v[1]] + P[t.v[2]]) / 3.0;
+    const double dist = std::max(0.0, (centroid - c).norm() - 0.5 * l);
+    return l > std::max(spec.finest, spec.grading * dist) * (1.0 + 1e-9);
+  };
+  auto hanging = [&](const ChildTri& t) {
+    for (int e = 0; e < 3; ++e)
+      if (midpoint.count(edge_key(t.v[e], t.v[(e + 1) % 3]))) return true;
+    return false;
+  };
+  // The midpoint of edge (a, b) of t, made once and shared by the triangles on either side.
+  auto midpoint_of = [&](const ChildTri& t, int a, int b, const Bary& mb) {
+    const auto it = midpoint.find(edge_key(a, b));
+    if (it != midpoint.end()) return it->second;
+    const int m = add_child_vertex(out, 0.5 * (P[a] + P[b]), {t.parent, mb});
+    midpoint.emplace(edge_key(a, b), m);
+    return m;
+  };
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (std::size_t i = 0; i < tris.size(); ++i) {
+      while (too_big(tris[i]) || hanging(tris[i])) {
+        if (tris.size() >= kMaxChildTriangles)
+          throw std::runtime_error("refinement: more than " + std::to_string(kMaxChildTriangles) +
+                                   " child triangles; the finest edge is too small for the mesh");
+        const ChildTri t = tris[i];
+        const int k = longest(t).first;  // edge (k, k+1), opposite corner k+2
+        Bary mb;
+        for (int j = 0; j < 3; ++j) mb[j] = 0.5 * (t.b[k][j] + t.b[(k + 1) % 3][j]);
+        const int m = midpoint_of(t, t.v[k], t.v[(k + 1) % 3], mb);
+        ChildTri t1 = t, t2 = t;  // (a, m, o) and (m, b, o), the parent's orientation
+        t1.v[(k + 1) % 3] = m;
+        t1.b[(k + 1) % 3] = mb;
+        t2.v[k] = m;
+        t2.b[k] = mb;
+        tris[i] = t1;
+        tris.push_back(t2);
+        changed = true;
+      }
+    }
+  }
+}
+
+// The children as the refined mesh's triangles, with weave coordinates interpolated in each
+// child's global triangle, and the finest edge.
+void add_triangles(const cloth::ClothModel& g, const std::vector<ChildTri>& tris, RefinedMesh& out) {
+  const auto& P = out.mesh.positions;
+  out.finest_edge = 1e300;
+  for (const ChildTri& t : tris) {
+    const auto uv = weave_corners(g.elements[t.parent]);
+    std::array<std::array<double, 2>, 3> cuv{};
+    for (int k = 0; k < 3; ++k)
+      for (int d = 0; d < 2; ++d)
+        cuv[k][d] = t.b[k][0] * uv[0][d] + t.b[k][1] * uv[1][d] + t.b[k][2] * uv[2][d];
+    out.mesh.triangles.push_back(t.v);
+    out.mesh.weave_uv.push_back(cuv);
+    for (int e = 0; e < 3; ++e)
+      out.finest_edge = std::min(out.finest_edge, (P[t.v[e]] - P[t.v[(e + 1) % 3]]).norm());
+  }
+}
 }  // namespace
 
 void RefinedMesh::place(const std::vector<Vec3>& global_x, std::vector<Vec3>& x) const {
@@ -96,90 +199,18 @@ RefinedMesh MeshRefiner::refine(const ClothPoint& contact, const RefineSpec& spe
     throw std::invalid_argument("refinement: finest edge, grading and reach must be positive");
   RefinedMesh out;
   out.region = region_around(contact, spec.reach);
-  const Vec3 c = rest_point(contact);
+  std::vector<ChildTri> tris = seed_children(g_, out);
+  bisect_toward(rest_point(contact), spec, tris, out);
+  out.held = held_children(out);
+  for (const ClothPoint& p : out.at) out.tri_vertices.push_back(g_.triangles[p.tri]);
+  add_triangles(g_, tris, out);
+  return out;
+}
 
-  // The region's global vertices become the first child vertices.
-  std::unordered_map<int, int> child_of;
-  std::vector<ChildTri> tris;
-  auto add_vertex = [&](const Vec3& rest, const ClothPoint& at) {
-    out.mesh.positions.push_back(rest);
-    out.at.push_back(at);
-    return static_cast<int>(out.at.size()) - 1;
-  };
-  for (int t : out.region) {
-    ChildTri ct{{0, 0, 0}, t, {}};
-    for (int k = 0; k < 3; ++k) {
-      const int gv = g_.triangles[t][k];
-      Bary b{0.0, 0.0, 0.0};
-      b[k] = 1.0;
-      auto it = child_of.find(gv);
-      if (it == child_of.end()) it = child_of.emplace(gv, add_vertex(g_.rest_positions[gv], {t, b})).first;
-      ct.v[k] = it->second;
-      ct.b[k] = b;
-    }
-    tris.push_back(ct);
-  }
-
-  // Rivara's longest-edge bisection toward the contact point.
-  std::unordered_map<std::uint64_t, int> midpoint;
-  const auto& P = out.mesh.positions;
-  auto longest = [&](const ChildTri& t) {
-    int k = 0;
-    double best = -1.0;
-    for (int e = 0; e < 3; ++e) {
-      const double l = (P[t.v[e]] - P[t.v[(e + 1) % 3]]).squaredNorm();
-      if (l > best) best = l, k = e;
-    }
-    return std::make_pair(k, std::sqrt(best));
-  };
-  auto too_big = [&](const ChildTri& t) {
-    const auto [k, l] = longest(t);
-    (void)k;
-    const Vec3 centroid = (P[t.v[0]] + P[t.v[1]] + P[t.v[2]]) / 3.0;
-    const double dist = std::max(0.0, (centroid - c).norm() - 0.5 * l);
-    return l > std::max(spec.finest, spec.grading * dist) * (1.0 + 1e-9);
-  };
-  auto hanging = [&](const ChildTri& t) {
-    for (int e = 0; e < 3; ++e)
-      if (midpoint.count(edge_key(t.v[e], t.v[(e + 1) % 3]))) return true;
-    return false;
-  };
-  bool changed = true;
-  while (changed) {
-    changed = false;
-    for (std::size_t i = 0; i < tris.size(); ++i) {
-      while (too_big(tris[i]) || hanging(tris[i])) {
-        if (tris.size() >= kMaxChildTriangles)
-          throw std::runtime_error("refinement: more than " + std::to_string(kMaxChildTriangles) +
-                                   " child triangles; the finest edge is too small for the mesh");
-        const ChildTri t = tris[i];
-        const int k = longest(t).first;  // edge (k, k+1), opposite corner k+2
-        const int a = t.v[k], b = t.v[(k + 1) % 3];
-        Bary mb;
-        for (int j = 0; j < 3; ++j) mb[j] = 0.5 * (t.b[k][j] + t.b[(k + 1) % 3][j]);
-        auto it = midpoint.find(edge_key(a, b));
-        int m;
-        if (it == midpoint.end()) {
-          m = add_vertex(0.5 * (P[a] + P[b]), {t.parent, mb});
-          midpoint.emplace(edge_key(a, b), m);
-        } else {
-          m = it->second;
-        }
-        ChildTri t1 = t, t2 = t;  // (a, m, o) and (m, b, o), the parent's orientation
-        t1.v[(k + 1) % 3] = m;
-        t1.b[(k + 1) % 3] = mb;
-        t2.v[k] = m;
-        t2.b[k] = mb;
-        tris[i] = t1;
-        tris.push_back(t2);
-        changed = true;
-      }
-    }
-  }
-
-  // Which child vertices follow the global cloth: those on an edge or a vertex the region shares
-  // with the rest of the cloth, and the cloth's pins. (Barycentric zeros are exact: midpoints of
-  // exact zeros.)
+// Which child vertices follow the global cloth: those on an edge or a vertex the region shares
+// with the rest of the cloth, and the cloth's pins. (Barycentric zeros are exact: midpoints of
+// exact zeros.)
+std::vector<int> MeshRefiner::held_children(const RefinedMesh& out) const {
   std::vector<char> in_region(g_.triangles.size(), 0);
   for (int t : out.region) in_region[t] = 1;
   auto vertex_on_interface = [&](int gv) {
@@ -199,6 +230,7 @@ RefinedMesh MeshRefiner::refine(const ClothPoint& contact, const RefineSpec& spe
       }
     return inside < 2;
   };
+  std::vector<int> held;
   for (int i = 0; i < static_cast<int>(out.at.size()); ++i) {
     const ClothPoint& p = out.at[i];
     const auto& gv = g_.triangles[p.tri];
@@ -207,28 +239,12 @@ RefinedMesh MeshRefiner::refine(const ClothPoint& contact, const RefineSpec& spe
       if (p.b[k] == 0.0) ++zeros, missing = k;
       if (p.b[k] == 1.0) corner = k;
     }
-    bool held = false;
-    if (corner >= 0) held = g_.pinned[gv[corner]] || vertex_on_interface(gv[corner]);
-    else if (zeros == 1) held = edge_on_interface(gv[(missing + 1) % 3], gv[(missing + 2) % 3]);
-    if (held) out.held.push_back(i);
+    bool on_interface = false;
+    if (corner >= 0) on_interface = g_.pinned[gv[corner]] || vertex_on_interface(gv[corner]);
+    else if (zeros == 1) on_interface = edge_on_interface(gv[(missing + 1) % 3], gv[(missing + 2) % 3]);
+    if (on_interface) held.push_back(i);
   }
-
-  for (const ClothPoint& p : out.at) out.tri_vertices.push_back(g_.triangles[p.tri]);
-
-  // Weave coordinates, interpolated in each child's global triangle.
-  out.finest_edge = 1e300;
-  for (const ChildTri& t : tris) {
-    const auto uv = weave_corners(g_.elements[t.parent]);
-    std::array<std::array<double, 2>, 3> cuv{};
-    for (int k = 0; k < 3; ++k)
-      for (int d = 0; d < 2; ++d)
-        cuv[k][d] = t.b[k][0] * uv[0][d] + t.b[k][1] * uv[1][d] + t.b[k][2] * uv[2][d];
-    out.mesh.triangles.push_back(t.v);
-    out.mesh.weave_uv.push_back(cuv);
-    for (int e = 0; e < 3; ++e)
-      out.finest_edge = std::min(out.finest_edge, (P[t.v[e]] - P[t.v[(e + 1) % 3]]).norm());
-  }
-  return out;
+  return held;
 }
 
 }  // namespace hapticloth::haptics

@@ -66,6 +66,7 @@ class MeshRefiner {
 
  private:
   std::vector<int> region_around(const ClothPoint& contact, double reach) const;
+  std::vector<int> held_children(const RefinedMesh& out) const;
 
   const cloth::ClothModel& g_;
   std::unordered_map<std::uint64_t, int> edge_uses_;  // global edge -> triangles using it

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <iostream>
 #include <limits>
 
@@ -156,203 +157,251 @@ std::vector<double> sample_times(double first, double step, double last) {
   return t;
 }
 
+// The sweep: the reference configuration, the scene's defaults, and the steps and alphas tried.
+struct Sweep {
+  app::Scene sc;
+  bool quick = false;
+  RunConfig reference, defaults;
+  std::vector<double> dts, alphas;
+  std::function<void(const std::string&)> say;
+};
+
+Sweep make_sweep(const AccuracyOptions& opt) {
+  Sweep w;
+  w.sc = main_scene(opt.source_dir);
+  w.quick = opt.quick;
+  w.say = progress("accuracy", opt.verbose);
+  // The reference: dt 0.05 ms (0.25 ms with --quick), alpha 0.5 (second order), PCG to 1e-10 in
+  // double precision.
+  w.reference.dt = w.quick ? 2.5e-4 : 5e-5;
+  w.reference.alpha = 0.5;
+  w.reference.tolerance = 1e-10;
+  w.reference.float_matrix = false;
+  w.reference.max_iterations = 5000;
+  w.defaults = default_config(w.sc);
+  w.dts = w.quick ? std::vector<double>{1e-3, 5e-3, 20e-3, 40e-3}
+                  : std::vector<double>{0.25e-3, 0.5e-3, 1e-3, 2e-3, 5e-3, 10e-3, 20e-3, 40e-3};
+  w.alphas = w.quick ? std::vector<double>{0.5, 1.0} : std::vector<double>{0.5, 0.6, 0.75, 1.0};
+  return w;
+}
+
+// Solver variants at a given dt and alpha: CHOLMOD, and PCG at four tolerances in double and
+// float matrices.
+std::vector<RunConfig> solver_sweep(const Sweep& w, double dt, double alpha) {
+  std::vector<RunConfig> v;
+  RunConfig c = w.defaults;
+  c.dt = dt;
+  c.alpha = alpha;
+  c.sweep = "solver";
+  RunConfig ch = c;
+  ch.solver = "cholmod";
+  v.push_back(ch);
+  for (double tol : std::vector<double>{1e-2, 1e-3, 1e-4, 1e-6}) {
+    if (w.quick && tol < 1e-5) continue;
+    for (bool fm : {false, true}) {
+      if (fm && tol < 1e-5) continue;  // the float matrix is for tolerances well above 6e-8
+      RunConfig p = c;
+      p.tolerance = tol;
+      p.float_matrix = fm;
+      v.push_back(p);
+    }
+  }
+  return v;
+}
+
+// One run of the release scene against its reference, as a JSON row.
+json release_row(const RunConfig& c, const Trace& tr, const Trace& ref, const std::vector<int>& map) {
+  json r = config_json(c);
+  r["cpu_s_per_sim_s"] = tr.cpu / tr.sim;
+  r["pos_err_mm"] = tr.finite ? 1e3 * position_error(tr, ref, map) : std::numeric_limits<double>::quiet_NaN();
+  r["events"] = app::events_json(tr.events);
+  r["stable"] = tr.finite && tr.events.restores == 0;
+  return r;
+}
+
+// The release's configurations against the reference: dt x alpha, and the solvers at three steps.
+std::vector<RunConfig> release_configs(const Sweep& w) {
+  std::vector<RunConfig> cfgs;
+  for (double dt : w.dts)
+    for (double a : w.alphas) {
+      RunConfig c = w.defaults;
+      c.dt = dt, c.alpha = a, c.sweep = "dt-alpha";
+      cfgs.push_back(c);
+    }
+  for (double dt : w.quick ? std::vector<double>{5e-3} : std::vector<double>{1e-3, 5e-3, 20e-3})
+    for (const auto& c : solver_sweep(w, dt, 1.0)) cfgs.push_back(c);
+  return cfgs;
+}
+
+// Mesh resolution against the finest mesh (nested grids, so vertices coincide); the reference
+// for this sweep is the finest grid at dt 0.25 ms, alpha 0.5, tight solve. Adds its rows to
+// `runs` and returns the reference's configuration.
+RunConfig release_resolution_runs(const Sweep& w, const std::vector<double>& samples, json& runs) {
+  const std::vector<int> res = w.quick ? std::vector<int>{11, 22, 44} : std::vector<int>{11, 22, 44, 88};
+  const cloth::ClothModel fine = grid_model(w.sc, res.back());
+  RunConfig fine_cfg = w.reference;
+  fine_cfg.dt = 2.5e-4;
+  fine_cfg.resolution = res.back();
+  w.say("release: reference run of the resolution sweep (" + std::to_string(fine.num_triangles()) + " triangles)");
+  const Trace fine_ref = run_release(w.sc, fine, fine_cfg, samples);
+  for (int n : std::vector<int>(res.begin(), res.end() - (w.quick ? 1 : 0))) {
+    const cloth::ClothModel mm = grid_model(w.sc, n);
+    const std::vector<int> map = nested_map(mm, fine);
+    // the default tolerance, and 10x tighter: does the tolerance show on finer meshes?
+    for (double tol : {w.defaults.tolerance, 0.1 * w.defaults.tolerance}) {
+      RunConfig c = w.defaults;
+      c.resolution = n;
+      c.tolerance = tol;
+      c.sweep = "resolution";
+      w.say("release: " + describe(c));
+      runs.push_back(release_row(c, run_release(w.sc, mm, c, samples), fine_ref, map));
+      runs.back()["triangles"] = mm.num_triangles();
+    }
+  }
+  return fine_cfg;
+}
+
+// The cloth alone: the hanging square released from flat, every configuration against the
+// reference, and the mesh resolution against the finest mesh.
+json release_scene(const Sweep& w) {
+  const double T = w.quick ? 0.6 : 1.0;
+  const auto samples = sample_times(0.2, 0.2, T);  // multiples of every dt in the sweep
+  const cloth::ClothModel m = grid_model(w.sc, 22);
+  w.say("release: reference run");
+  const Trace ref = run_release(w.sc, m, w.reference, samples);
+  json runs = json::array();
+  for (const auto& c : release_configs(w)) {
+    w.say("release: " + describe(c));
+    runs.push_back(release_row(c, run_release(w.sc, m, c, samples), ref, {}));
+  }
+  const RunConfig fine_cfg = release_resolution_runs(w, samples, runs);
+  mark_front(runs, "pos_err_mm", "pareto");
+  return {{"what", "hanging square (968 triangles) released from flat, " + std::to_string(samples.size()) +
+                       " samples over " + fmt(T) + " s; error: RMS vertex distance"},
+          {"reference_cpu_s_per_sim_s", ref.cpu / ref.sim},
+          {"resolution_reference", config_json(fine_cfg)},
+          {"runs", runs}};
+}
+
+// A haptic scene: the cloth, its start, the device's origin and script.
+struct HapticScene {
+  std::string name, what;
+  cloth::ClothModel model;
+  cloth::ClothState start;
+  Vec3 origin = Vec3::Zero();
+  devices::Trajectory script{2};
+};
+
+// The press: a 0.3 m square of the same denim, pinned on its four edges and pre-stretched by 3%
+// (an embroidery hoop: a membrane without bending resists a press only through tension), under
+// gravity; finger 0 comes down on it at (3, 2) mm from the centre, presses 4 mm into it, holds
+// and leaves. Finger 1 stays away.
+HapticScene press_scene(const Sweep& w) {
+  HapticScene p;
+  p.name = "press";
+  p.what = "press 4 mm into a pre-stretched 0.3 m drum (800 triangles)";
+  p.model = test::square_cloth(w.sc.material, {"top", "bottom", "left", "right"});
+  cloth::ClothState stretched = cloth::rest_state(p.model);
+  for (auto& x : stretched.x) x.head<2>() *= 1.03;
+  p.start = settle(w.sc, p.model, stretched, w.defaults.dt, 2.0);  // 2 s: settles the sag
+  const double r = w.sc.haptics.finger.radius, x = 0.003, y = 0.002;
+  double zc = 0.0;  // the sagged cloth under the finger
+  for (int i = 0; i < p.model.num_vertices(); ++i)
+    if ((p.start.x[i].head<2>() - Eigen::Vector2d(x, y)).norm() < 0.01) zc = std::min(zc, p.start.x[i].z());
+  for (const auto& [t, z] : std::vector<std::pair<double, double>>{
+           {0.0, zc + 0.02}, {0.1, zc + 0.02}, {0.5, zc + r - 0.004}, {0.9, zc + r - 0.004}, {1.2, zc + 0.02}})
+    p.script.add(0, t, Vec3(x, y, z));
+  p.script.add(1, 0.0, Vec3(0.1, 0.1, 0.08));
+  return p;
+}
+
+// The pinch-lift on the hanging square at rest (the scene's preroll, CHOLMOD at dt 1 ms).
+HapticScene pinch_scene(const Sweep& w, const std::string& source_dir) {
+  HapticScene p;
+  p.name = "pinch";
+  p.what = "pinch-lift on the hanging square at rest (tools/scenes/accuracy_pinch.toml)";
+  p.model = app::build_model(w.sc);
+  p.start = settle(w.sc, p.model, cloth::rest_state(p.model), w.defaults.dt, w.sc.preroll);
+  p.origin = w.sc.haptics.mapping.origin;
+  p.script = devices::load_trajectory(source_dir + "/tools/scenes/accuracy_pinch.toml", 2);
+  return p;
+}
+
+// dt <= the haptic period: direct coupling (what the server runs when the step fits); longer
+// steps: the multirate path with each local model (4.2), and for comparison the direct
+// coupling, which the server does not run at such steps (it shortens dt instead).
+std::vector<RunConfig> haptic_configs(const Sweep& w) {
+  std::vector<RunConfig> cfgs;
+  for (double dt : w.dts) {
+    if (dt > 1e-3) continue;
+    for (double a : w.quick ? std::vector<double>{1.0} : std::vector<double>{0.5, 1.0}) {
+      RunConfig c = w.defaults;
+      c.dt = dt, c.alpha = a, c.sweep = "dt-alpha";
+      cfgs.push_back(c);
+    }
+  }
+  for (double dt : w.dts) {
+    if (dt <= 1e-3) continue;
+    RunConfig c = w.defaults;
+    c.dt = dt, c.multirate = true, c.sweep = "local-response";
+    cfgs.push_back(c);
+    c.local_model = haptics::LocalModel::Patch, c.sweep = "local-patch";
+    cfgs.push_back(c);
+    c.multirate = false, c.sweep = "direct-long-step";
+    cfgs.push_back(c);
+  }
+  if (!w.quick)
+    for (const auto& c : solver_sweep(w, 1e-3, 1.0)) cfgs.push_back(c);
+  return cfgs;
+}
+
+// One haptic run against its reference, as a JSON row.
+json haptic_row(const RunConfig& c, const Trace& tr, const Trace& ref) {
+  json r = config_json(c);
+  r["cpu_s_per_sim_s"] = tr.cpu / tr.sim;
+  const auto [fe, fmax] = force_error(tr, ref);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  r["pos_err_mm"] = tr.finite ? 1e3 * position_error(tr, ref, {}) : nan;
+  r["force_err_rel"] = tr.finite ? fe : nan;
+  r["force_err_max_n"] = tr.finite ? fmax : nan;
+  r["events"] = app::events_json(tr.events);
+  r["stable"] = tr.finite && tr.events.restores == 0;
+  return r;
+}
+
+// Every haptic configuration of a scene against its reference run.
+json haptic_scene(const Sweep& w, const HapticScene& p) {
+  const double T = p.script.duration();
+  const auto samples = sample_times(0.2, 0.2, T - 0.04);
+  w.say(p.name + ": reference run");
+  const Trace ref = run_haptic(w.sc, p.model, p.start, p.origin, p.script, w.reference, T, samples);
+  json runs = json::array();
+  for (const auto& c : haptic_configs(w)) {
+    w.say(p.name + ": " + describe(c));
+    runs.push_back(haptic_row(c, run_haptic(w.sc, p.model, p.start, p.origin, p.script, c, T, samples), ref));
+  }
+  mark_front(runs, "force_err_rel", "pareto");
+  mark_front(runs, "pos_err_mm", "pareto_position");
+  double fmax_ref = 0.0;
+  for (const auto& f : ref.force) fmax_ref = std::max(fmax_ref, f.norm());
+  return {{"what", p.what + ", " + fmt(T) + " s; error: relative RMS of the rendered force every 1 ms, RMS vertex "
+                   "distance at " + std::to_string(samples.size()) + " samples"},
+          {"reference_cpu_s_per_sim_s", ref.cpu / ref.sim},
+          {"reference_max_force_n", fmax_ref},
+          {"runs", runs}};
+}
+
 }  // namespace
 
 json accuracy(const AccuracyOptions& opt) {
-  const bool quick = opt.quick;
-  const app::Scene sc = main_scene(opt.source_dir);
-  const auto say = progress("accuracy", opt.verbose);
-  // The reference: dt 0.05 ms (0.25 ms with --quick), alpha 0.5 (second order), PCG to 1e-10 in
-  // double precision.
-  RunConfig ref_cfg;
-  ref_cfg.dt = quick ? 2.5e-4 : 5e-5;
-  ref_cfg.alpha = 0.5;
-  ref_cfg.tolerance = 1e-10;
-  ref_cfg.float_matrix = false;
-  ref_cfg.max_iterations = 5000;
-
-  const RunConfig defaults = default_config(sc);
-  const std::vector<double> dts = quick ? std::vector<double>{1e-3, 5e-3, 20e-3, 40e-3}
-                                        : std::vector<double>{0.25e-3, 0.5e-3, 1e-3, 2e-3, 5e-3, 10e-3, 20e-3, 40e-3};
-  const std::vector<double> alphas = quick ? std::vector<double>{0.5, 1.0} : std::vector<double>{0.5, 0.6, 0.75, 1.0};
-
-  // Solver variants at a given dt and alpha.
-  auto solver_sweep = [&](double dt, double alpha) {
-    std::vector<RunConfig> v;
-    RunConfig c = defaults;
-    c.dt = dt;
-    c.alpha = alpha;
-    c.sweep = "solver";
-    RunConfig ch = c;
-    ch.solver = "cholmod";
-    v.push_back(ch);
-    for (double tol : std::vector<double>{1e-2, 1e-3, 1e-4, 1e-6}) {
-      if (quick && tol < 1e-5) continue;
-      for (bool fm : {false, true}) {
-        if (fm && tol < 1e-5) continue;  // the float matrix is for tolerances well above 6e-8
-        RunConfig p = c;
-        p.tolerance = tol;
-        p.float_matrix = fm;
-        v.push_back(p);
-      }
-    }
-    return v;
-  };
-
+  const Sweep w = make_sweep(opt);
   json out = {{"benchmark", "accuracy"},
-              {"quick", quick},
-              {"reference", config_json(ref_cfg)},
-              {"defaults", config_json(defaults)}};
-
-  // ---------------------------------------------------------------- release (cloth only)
-  {
-    const double T = quick ? 0.6 : 1.0;
-    const auto samples = sample_times(0.2, 0.2, T);  // multiples of every dt in the sweep
-    const cloth::ClothModel m = grid_model(sc, 22);
-    say("release: reference run");
-    const Trace ref = run_release(sc, m, ref_cfg, samples);
-    json runs = json::array();
-    auto add = [&](const RunConfig& c, const Trace& tr, const Trace& rf, const std::vector<int>& map) {
-      json r = config_json(c);
-      r["cpu_s_per_sim_s"] = tr.cpu / tr.sim;
-      r["pos_err_mm"] = tr.finite ? 1e3 * position_error(tr, rf, map) : std::numeric_limits<double>::quiet_NaN();
-      r["events"] = app::events_json(tr.events);
-      r["stable"] = tr.finite && tr.events.restores == 0;
-      runs.push_back(r);
-    };
-    std::vector<RunConfig> cfgs;
-    for (double dt : dts)
-      for (double a : alphas) {
-        RunConfig c = defaults;
-        c.dt = dt, c.alpha = a, c.sweep = "dt-alpha";
-        cfgs.push_back(c);
-      }
-    for (double dt : quick ? std::vector<double>{5e-3} : std::vector<double>{1e-3, 5e-3, 20e-3})
-      for (const auto& c : solver_sweep(dt, 1.0)) cfgs.push_back(c);
-    for (const auto& c : cfgs) {
-      say("release: " + describe(c));
-      add(c, run_release(sc, m, c, samples), ref, {});
-    }
-    // Mesh resolution against the finest mesh (nested grids, so vertices coincide); the
-    // reference for this sweep is the finest grid at dt 0.25 ms, alpha 0.5, tight solve.
-    const std::vector<int> res = quick ? std::vector<int>{11, 22, 44} : std::vector<int>{11, 22, 44, 88};
-    const cloth::ClothModel fine = grid_model(sc, res.back());
-    RunConfig fine_cfg = ref_cfg;
-    fine_cfg.dt = 2.5e-4;
-    fine_cfg.resolution = res.back();
-    say("release: reference run of the resolution sweep (" + std::to_string(fine.num_triangles()) + " triangles)");
-    const Trace fine_ref = run_release(sc, fine, fine_cfg, samples);
-    for (int n : std::vector<int>(res.begin(), res.end() - (quick ? 1 : 0))) {
-      const cloth::ClothModel mm = grid_model(sc, n);
-      const std::vector<int> map = nested_map(mm, fine);
-      // the default tolerance, and 10x tighter: does the tolerance show on finer meshes?
-      for (double tol : {defaults.tolerance, 0.1 * defaults.tolerance}) {
-        RunConfig c = defaults;
-        c.resolution = n;
-        c.tolerance = tol;
-        c.sweep = "resolution";
-        say("release: " + describe(c));
-        add(c, run_release(sc, mm, c, samples), fine_ref, map);
-        runs.back()["triangles"] = mm.num_triangles();
-      }
-    }
-    mark_front(runs, "pos_err_mm", "pareto");
-    out["scenes"]["release"] = {{"what", "hanging square (968 triangles) released from flat, " +
-                                             std::to_string(samples.size()) + " samples over " +
-                                             fmt(T) + " s; error: RMS vertex distance"},
-                                {"reference_cpu_s_per_sim_s", ref.cpu / ref.sim},
-                                {"resolution_reference", config_json(fine_cfg)},
-                                {"runs", runs}};
-  }
-
-  // ---------------------------------------------------------------- press and pinch (haptics)
-  // Both start from the hanging square at rest (the scene's preroll, CHOLMOD at dt 1 ms).
-  const cloth::ClothModel hanging = app::build_model(sc);
-  const cloth::ClothState rest = settle(sc, hanging, cloth::rest_state(hanging), defaults.dt, sc.preroll);
-  // The press: a 0.3 m square of the same denim, pinned on its four edges and pre-stretched by
-  // 3% (an embroidery hoop: a membrane without bending resists a press only through tension),
-  // under gravity; finger 0 comes down on it at (3, 2) mm from the centre, presses 4 mm into
-  // it, holds and leaves. Finger 1 stays away.
-  const cloth::ClothModel drum = test::square_cloth(sc.material, {"top", "bottom", "left", "right"});
-  cloth::ClothState drum_start;
-  {
-    cloth::ClothState stretched = cloth::rest_state(drum);
-    for (auto& x : stretched.x) x.head<2>() *= 1.03;
-    drum_start = settle(sc, drum, stretched, defaults.dt, 2.0);  // 2 s: settles the sag
-  }
-  devices::Trajectory press(2);
-  {
-    const double r = sc.haptics.finger.radius, x = 0.003, y = 0.002;
-    double zc = 0.0;  // the sagged cloth under the finger
-    for (int i = 0; i < drum.num_vertices(); ++i)
-      if ((drum_start.x[i].head<2>() - Eigen::Vector2d(x, y)).norm() < 0.01) zc = std::min(zc, drum_start.x[i].z());
-    for (const auto& [t, z] : std::vector<std::pair<double, double>>{
-             {0.0, zc + 0.02}, {0.1, zc + 0.02}, {0.5, zc + r - 0.004}, {0.9, zc + r - 0.004}, {1.2, zc + 0.02}})
-      press.add(0, t, Vec3(x, y, z));
-    press.add(1, 0.0, Vec3(0.1, 0.1, 0.08));
-  }
-  for (const char* name : {"press", "pinch"}) {
-    const bool is_press = std::string(name) == "press";
-    const std::string script_path = is_press ? "built-in" : opt.source_dir + "/tools/scenes/accuracy_pinch.toml";
-    const devices::Trajectory script = is_press ? press : devices::load_trajectory(script_path, 2);
-    const cloth::ClothModel& m = is_press ? drum : hanging;
-    const cloth::ClothState& start = is_press ? drum_start : rest;
-    const Vec3 origin = is_press ? Vec3::Zero() : sc.haptics.mapping.origin;
-    const double T = script.duration();
-    const auto samples = sample_times(0.2, 0.2, T - 0.04);
-    say(std::string(name) + ": reference run");
-    const Trace ref = run_haptic(sc, m, start, origin, script, ref_cfg, T, samples);
-    json runs = json::array();
-    std::vector<RunConfig> cfgs;
-    // dt <= the haptic period: direct coupling (what the server runs when the step fits);
-    // longer steps: the multirate path with each local model (4.2), and for comparison the
-    // direct coupling, which the server does not run at such steps (it shortens dt instead).
-    for (double dt : dts) {
-      if (dt > 1e-3) continue;
-      for (double a : quick ? std::vector<double>{1.0} : std::vector<double>{0.5, 1.0}) {
-        RunConfig c = defaults;
-        c.dt = dt, c.alpha = a, c.sweep = "dt-alpha";
-        cfgs.push_back(c);
-      }
-    }
-    for (double dt : dts) {
-      if (dt <= 1e-3) continue;
-      RunConfig c = defaults;
-      c.dt = dt, c.multirate = true, c.sweep = "local-response";
-      cfgs.push_back(c);
-      c.local_model = haptics::LocalModel::Patch, c.sweep = "local-patch";
-      cfgs.push_back(c);
-      c.multirate = false, c.sweep = "direct-long-step";
-      cfgs.push_back(c);
-    }
-    if (!quick)
-      for (const auto& c : solver_sweep(1e-3, 1.0)) cfgs.push_back(c);
-    for (const auto& c : cfgs) {
-      say(std::string(name) + ": " + describe(c));
-      const Trace tr = run_haptic(sc, m, start, origin, script, c, T, samples);
-      json r = config_json(c);
-      r["cpu_s_per_sim_s"] = tr.cpu / tr.sim;
-      const auto [fe, fmax] = force_error(tr, ref);
-      const double nan = std::numeric_limits<double>::quiet_NaN();
-      r["pos_err_mm"] = tr.finite ? 1e3 * position_error(tr, ref, {}) : nan;
-      r["force_err_rel"] = tr.finite ? fe : nan;
-      r["force_err_max_n"] = tr.finite ? fmax : nan;
-      r["events"] = app::events_json(tr.events);
-      r["stable"] = tr.finite && tr.events.restores == 0;
-      runs.push_back(r);
-    }
-    mark_front(runs, "force_err_rel", "pareto");
-    mark_front(runs, "pos_err_mm", "pareto_position");
-    double fmax_ref = 0.0;
-    for (const auto& f : ref.force) fmax_ref = std::max(fmax_ref, f.norm());
-    out["scenes"][name] = {{"what", std::string(is_press ? "press 4 mm into a pre-stretched 0.3 m drum (800 triangles)"
-                                                         : "pinch-lift on the hanging square at rest (tools/scenes/accuracy_pinch.toml)") +
-                                        ", " + fmt(T) + " s; error: relative RMS of the rendered force every 1 ms, "
-                                        "RMS vertex distance at " + std::to_string(samples.size()) + " samples"},
-                           {"reference_cpu_s_per_sim_s", ref.cpu / ref.sim},
-                           {"reference_max_force_n", fmax_ref},
-                           {"runs", runs}};
-  }
+              {"quick", w.quick},
+              {"reference", config_json(w.reference)},
+              {"defaults", config_json(w.defaults)}};
+  out["scenes"]["release"] = release_scene(w);
+  out["scenes"]["press"] = haptic_scene(w, press_scene(w));
+  out["scenes"]["pinch"] = haptic_scene(w, pinch_scene(w, opt.source_dir));
   return out;
 }
 

@@ -210,23 +210,9 @@ PinchSite middle_of_cloth(const cloth::ClothModel& model, const cloth::ClothStat
   return {s.x[mid] + 0.0011 * t1 + 0.0007 * t2, n};
 }
 
-}  // namespace
-
-json pinch_step(const app::Scene& scene, double seconds, double settle_s) {
-  const cloth::ClothModel model = app::build_model(scene);
-  haptics::SessionConfig sc = scene.haptics;
-  sc.rendering = haptics::Rendering::Direct;
-  sc.mapping = haptics::DeviceMapping{};
-  sc.try_realtime = false;
-  cloth::IntegratorConfig ic = scene.integrator;
-  ic.dt = 1.0 / sc.haptic_rate;  // direct coupling steps at the haptic period
-  // A cloth brought to rest is the haptic scenes' case (their preroll); the scene's start state
-  // (the square released level) is pinched while it falls and swings.
-  cloth::ClothState start = cloth::rest_state(model);
-  if (settle_s > 0.0) start = settle(scene, model, start, 0.02, settle_s);
-  const PinchSite site = settle_s > 0.0 ? middle_of_cloth(model, start) : middle_of_extent(model);
-  // Pinch from either side, 2 mm squeeze each, and hold.
-  const double r = sc.finger.radius, sq = 0.002;
+// Pinch from either side, 2 mm squeeze each, and hold.
+devices::Trajectory pinch_trajectory(const PinchSite& site, double r, double seconds) {
+  const double sq = 0.002;
   devices::Trajectory tr(2);
   for (int f = 0; f < 2; ++f) {
     const double side = f == 0 ? 1.0 : -1.0;
@@ -234,17 +220,20 @@ json pinch_step(const app::Scene& scene, double seconds, double settle_s) {
     tr.add(f, 0.05, site.at + side * (r - sq) * site.across);
     tr.add(f, seconds, site.at + side * (r - sq) * site.across);
   }
-  test::TouchRig rig(cloth::ClothModel(model), std::move(tr), sc, ic, start, scene.solver,
-                     scene.pcg);
+  return tr;
+}
+
+// Where a pinch's steps' time goes, step by step.
+struct PinchSteps {
   long both = 0, ticks = 0;
-  // Where a step's time goes: the solver's iterations (summed over the re-solves) and the
-  // integrator's share of the step (the rest is the contact's sampling and FCL).
+  // The solver's iterations (summed over the re-solves) and the integrator's share of the step
+  // (the rest is the contact's sampling and FCL).
   haptics::Histogram iterations, integrator_us;
   // The kept matrix (IntegratorConfig::matrix_refresh): elements formed anew, steps that formed
   // the matrix whole, and the rows the solver reloaded where it did not.
   haptics::Histogram rows_reloaded;
   long refreshed = 0, formed_whole = 0;
-  std::uint64_t solves = 0, steps = 0, revisions = 0;
+  std::uint64_t steps = 0, revisions = 0;
   // Steps by how many solves they took (1, 2, 3, 4 or more), in the squeeze (the first 0.1 s)
   // and in the hold after it: the step's tail comes from the steps solved more than once.
   std::array<std::array<long, 4>, 2> by_solves{};
@@ -252,7 +241,8 @@ json pinch_step(const app::Scene& scene, double seconds, double settle_s) {
   // The same in the squeeze and in the hold: the squeeze's steps, where the contact forms and
   // the fingertips stop, take the most iterations.
   std::array<haptics::Histogram, 2> integrator_us_by_phase, iterations_by_phase;
-  rig.session->run_stepped(seconds, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker& w) {
+
+  void record(const haptics::HapticLoop& h, const haptics::SimWorker& w) {
     ++ticks;
     both += h.last_report().finger[0].in_contact && h.last_report().finger[1].in_contact;
     if (w.steps() == steps) return;
@@ -270,39 +260,68 @@ json pinch_step(const app::Scene& scene, double seconds, double settle_s) {
     integrator_us_by_phase[ticks > 100].add(1e3 * t.total_ms);
     iterations_by_phase[ticks > 100].add(t.iterations);
     revisions = rev;
-  });
-  solves = steps + rig.session->report().contact_revisions;
-  const haptics::SessionReport rep = rig.session->report();
-  const auto& st = rep.sim_step_us;
-  auto phase = [&](int i) {
+  }
+
+  json phase(int i) const {
     return json{{"p50", integrator_us_by_phase[i].quantile(0.5)}, {"p99", integrator_us_by_phase[i].quantile(0.99)},
                 {"iterations", iterations_by_phase[i].mean()}};
-  };
+  }
+
+  json kept_matrix(double matrix_refresh) const {
+    const double n = static_cast<double>(std::max<std::uint64_t>(1, steps));
+    return {{"matrix_refresh", matrix_refresh},
+            {"elements_formed_per_step", static_cast<double>(refreshed) / n},
+            {"steps_formed_whole", static_cast<double>(formed_whole) / n},
+            {"rows_reloaded_p50", rows_reloaded.count() ? rows_reloaded.quantile(0.5) : 0.0},
+            {"rows_reloaded_p99", rows_reloaded.count() ? rows_reloaded.quantile(0.99) : 0.0}};
+  }
+};
+
+}  // namespace
+
+json pinch_step(const app::Scene& scene, double seconds, double settle_s) {
+  const cloth::ClothModel model = app::build_model(scene);
+  haptics::SessionConfig sc = scene.haptics;
+  sc.rendering = haptics::Rendering::Direct;
+  sc.mapping = haptics::DeviceMapping{};
+  sc.try_realtime = false;
+  cloth::IntegratorConfig ic = scene.integrator;
+  ic.dt = 1.0 / sc.haptic_rate;  // direct coupling steps at the haptic period
+  // A cloth brought to rest is the haptic scenes' case (their preroll); the scene's start state
+  // (the square released level) is pinched while it falls and swings.
+  cloth::ClothState start = cloth::rest_state(model);
+  if (settle_s > 0.0) start = settle(scene, model, start, 0.02, settle_s);
+  const PinchSite site = settle_s > 0.0 ? middle_of_cloth(model, start) : middle_of_extent(model);
+  test::TouchRig rig(cloth::ClothModel(model), pinch_trajectory(site, sc.finger.radius, seconds), sc, ic, start,
+                     scene.solver, scene.pcg);
+  PinchSteps p;
+  rig.session->run_stepped(seconds, 0.0, [&](const haptics::HapticLoop& h, const haptics::SimWorker& w) {
+    p.record(h, w);
+  });
+  const std::uint64_t solves = p.steps + rig.session->report().contact_revisions;
+  const haptics::SessionReport rep = rig.session->report();
+  const auto& st = rep.sim_step_us;
   return {{"benchmark", "step-pinch"},
           {"scene", scene.name},
           {"settled_s", settle_s},  // 0: the scene's start state, pinched as it falls
           {"pinch_across", {site.across.x(), site.across.y(), site.across.z()}},
           {"triangles", model.num_triangles()},
           {"solver", scene.solver},
-          {"both_fingers_in_contact", static_cast<double>(both) / std::max(1L, ticks)},
+          {"both_fingers_in_contact", static_cast<double>(p.both) / std::max(1L, p.ticks)},
           {"sim_step_us", {{"p50", st.quantile(0.5)}, {"p99", st.quantile(0.99)}, {"max", st.max()}}},
           {"tick_compute_us", {{"p50", rep.haptic.compute_us.quantile(0.5)}, {"p99", rep.haptic.compute_us.quantile(0.99)}}},
-          {"integrator_us", {{"p50", integrator_us.quantile(0.5)}, {"p99", integrator_us.quantile(0.99)}}},
+          {"integrator_us", {{"p50", p.integrator_us.quantile(0.5)}, {"p99", p.integrator_us.quantile(0.99)}}},
           // A step's tail that comes with long waits is the helper's core slowed, not the step's
           // own work (docs/performance.md).
           {"helper_wait_us", {{"p50", rep.sim_helper_wait_us.quantile(0.5)}, {"p99", rep.sim_helper_wait_us.quantile(0.99)},
                               {"steps_over_100us", rep.sim_helper_wait_us.fraction_at_least(100.0)}}},
-          {"solver_iterations_per_step", {{"mean", iterations.mean()}, {"p99", iterations.quantile(0.99)}, {"max", iterations.max()}}},
-          {"solves_per_step", static_cast<double>(solves) / std::max<std::uint64_t>(1, steps)},
+          {"solver_iterations_per_step", {{"mean", p.iterations.mean()}, {"p99", p.iterations.quantile(0.99)}, {"max", p.iterations.max()}}},
+          {"solves_per_step", static_cast<double>(solves) / std::max<std::uint64_t>(1, p.steps)},
           {"contact_revisions", rep.contact_revisions},
-          {"steps_by_solves", {{"squeeze", by_solves[0]}, {"hold", by_solves[1]}}},
-          {"integrator_p50_us_by_solves", by_solves_p50(integrator_us_by_solves)},
-          {"integrator_us_by_phase", {{"squeeze", phase(0)}, {"hold", phase(1)}}},
-          {"kept_matrix", {{"matrix_refresh", ic.matrix_refresh},
-                           {"elements_formed_per_step", static_cast<double>(refreshed) / std::max<std::uint64_t>(1, steps)},
-                           {"steps_formed_whole", static_cast<double>(formed_whole) / std::max<std::uint64_t>(1, steps)},
-                           {"rows_reloaded_p50", rows_reloaded.count() ? rows_reloaded.quantile(0.5) : 0.0},
-                           {"rows_reloaded_p99", rows_reloaded.count() ? rows_reloaded.quantile(0.99) : 0.0}}},
+          {"steps_by_solves", {{"squeeze", p.by_solves[0]}, {"hold", p.by_solves[1]}}},
+          {"integrator_p50_us_by_solves", by_solves_p50(p.integrator_us_by_solves)},
+          {"integrator_us_by_phase", {{"squeeze", p.phase(0)}, {"hold", p.phase(1)}}},
+          {"kept_matrix", p.kept_matrix(ic.matrix_refresh)},
           {"max_penetration_mm", rep.max_penetration * 1e3}};
 }
 

@@ -20,6 +20,7 @@
 #include <fstream>
 #include <functional>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <vector>
 
@@ -35,6 +36,8 @@
 #include "app/toml_file.hpp"
 
 namespace {
+
+using namespace hapticloth;
 
 // Benchmarks that live in their own programs (built beside this one) are run through here so
 // that every benchmark is `hapticloth-bench NAME`.
@@ -71,285 +74,352 @@ int finish(const nlohmann::json& j, bool json, const std::string& png) {
   return plot(jp, png);
 }
 
-}  // namespace
+// The Python programs behind `hapticloth-bench haptic --subscribers` and `transport`: the client
+// package in .venv.
+int exec_python(std::vector<std::string> program, int argc, char** argv) {
+  for (int i = 2; i < argc; ++i) program.emplace_back(argv[i]);
+  std::vector<char*> args;
+  for (std::string& a : program) args.push_back(a.data());
+  args.push_back(nullptr);
+  ::execv(args[0], args.data());
+  std::cerr << "hapticloth-bench: cannot run " << program[0] << " (run tools/setup)\n";
+  return 2;
+}
 
-int main(int argc, char** argv) {
-  using namespace hapticloth;
-  if (argc >= 2 && std::string(argv[1]) == "udp") return exec_sibling("hapticloth-bench-udp", argc, argv);
-  if (argc >= 2 && std::string(argv[1]) == "haptic" &&
-      std::any_of(argv + 2, argv + argc, [](const char* a) {
-        const std::string s(a);
-        return s.rfind("--subscribers", 0) == 0 || s.rfind("--foxglove-clients", 0) == 0;
-      })) {
-    // With subscribers: the server and its zenoh and LCM subscribers (or Foxglove's WebSocket
-    // clients) run as processes inside a network namespace (Python:
-    // clients/python/hapticloth/bench_subscribers.py).
-    const std::string py = std::string(HAPTICLOTH_SOURCE_DIR) + "/.venv/bin/python";
-    std::vector<char*> args{const_cast<char*>(py.c_str()), const_cast<char*>("-m"),
-                            const_cast<char*>("hapticloth.bench_subscribers")};
-    for (int i = 2; i < argc; ++i) args.push_back(argv[i]);
-    args.push_back(nullptr);
-    ::execv(py.c_str(), args.data());
-    std::cerr << "hapticloth-bench: cannot run " << py << " (run tools/setup)\n";
-    return 2;
-  }
-  if (argc >= 2 && std::string(argv[1]) == "transport") {
-    // The transport benchmark's subscriber side is Python (the client package in .venv).
-    const std::string py = std::string(HAPTICLOTH_SOURCE_DIR) + "/.venv/bin/hapticloth-bench-transport";
-    std::vector<char*> args{const_cast<char*>(py.c_str())};
-    for (int i = 2; i < argc; ++i) args.push_back(argv[i]);
-    args.push_back(nullptr);
-    ::execv(py.c_str(), args.data());
-    std::cerr << "hapticloth-bench: cannot run " << py << " (run tools/setup)\n";
-    return 2;
-  }
+// The benchmarks that run in another program: the UDP round trip (C++, beside this one), the
+// haptic loop with subscribers or Foxglove clients in a network namespace
+// (clients/python/hapticloth/bench_subscribers.py) and the transport latency (Python).
+std::optional<int> run_elsewhere(int argc, char** argv) {
+  const std::string name = argc >= 2 ? argv[1] : "";
+  const std::string venv = std::string(HAPTICLOTH_SOURCE_DIR) + "/.venv/bin/";
+  const bool with_peers = std::any_of(argv + std::min(argc, 2), argv + argc, [](const char* a) {
+    const std::string s(a);
+    return s.rfind("--subscribers", 0) == 0 || s.rfind("--foxglove-clients", 0) == 0;
+  });
+  if (name == "udp") return exec_sibling("hapticloth-bench-udp", argc, argv);
+  if (name == "haptic" && with_peers) return exec_python({venv + "python", "-m", "hapticloth.bench_subscribers"}, argc, argv);
+  if (name == "transport") return exec_python({venv + "hapticloth-bench-transport"}, argc, argv);
+  return std::nullopt;
+}
 
-  // The benchmark's name comes first: say which option or name is wrong (CLI11 would only say
-  // that a subcommand is required).
+// The benchmark's name comes first: say which option or name is wrong (CLI11 would only say
+// that a subcommand is required).
+std::optional<int> refuse_unknown_benchmark(int argc, char** argv) {
   const std::vector<std::string> names{"step", "haptic", "timer", "accuracy", "stability", "limit", "fidelity",
                                         "late-ticks", "tactile"};
-  if (argc >= 2 && std::string(argv[1]) != "-h" && std::string(argv[1]) != "--help" &&
-      std::find(names.begin(), names.end(), argv[1]) == names.end()) {
-    std::cerr << "hapticloth-bench: " << (argv[1][0] == '-' ? "unknown option " : "unknown benchmark ")
-              << argv[1] << " (the benchmark comes first: step, haptic, timer, accuracy, stability, limit, "
-              << "fidelity, late-ticks, tactile, udp, transport; --help)\n";
-    return 2;
-  }
-  CLI::App cli{"hapticloth-bench: benchmarks with machine-readable output"};
-  cli.require_subcommand(1);
+  if (argc < 2 || std::string(argv[1]) == "-h" || std::string(argv[1]) == "--help" ||
+      std::find(names.begin(), names.end(), argv[1]) != names.end())
+    return std::nullopt;
+  std::cerr << "hapticloth-bench: " << (argv[1][0] == '-' ? "unknown option " : "unknown benchmark ") << argv[1]
+            << " (the benchmark comes first: step, haptic, timer, accuracy, stability, limit, "
+            << "fidelity, late-ticks, tactile, udp, transport; --help)\n";
+  return 2;
+}
 
-  auto* step = cli.add_subcommand("step", "time the cloth step of a scene, headless");
-  std::string scene_path, solver;
-  double dt = -1, alpha = -1, tol = -1;
+// What `step` changes in its scene.
+struct StepOptions {
+  std::string scene_path, solver, preconditioner, simd;
+  double dt = -1, alpha = -1, tol = -1, omega = 0, refresh = -1, settle_s = 0.0;
   long steps = 2000;
-  bool json = false;
-  step->add_option("--scene", scene_path, "scene file (TOML)")->required();
-  step->add_option("--solver", solver, "pcg, cholmod or cholmod-supernodal (default: the scene's)");
-  step->add_option("--dt", dt, "time step, s (default: the scene's)")->check(opts::positive(1.0, "s"));
-  step->add_option("--alpha", alpha, "alpha in [0.5, 1] (default: the scene's)")->check(opts::number_in(0.5, 1.0));
-  step->add_option("--pcg-tolerance", tol, "relative residual of the PCG solve")
+  int threads = 0;
+  bool pinch = false, script = false;
+};
+
+// Every option of every benchmark: CLI11 writes them here.
+struct Options {
+  bool json = false, quick = false;
+  std::string png, refine;  // --plot; --refine overrides haptics.refine
+  StepOptions step;
+  std::string haptic_scene = std::string(HAPTICLOTH_SOURCE_DIR) + "/tools/scenes/hanging_square.toml";
+  double haptic_duration = 10.0;
+  bool no_tactile = false;
+  long timer_ticks = 10000;
+  int timer_priority = 80;
+  bool fine_cloth = false;
+  std::string fine_scene;
+  long random_steps = 100000;
+  std::vector<int> square_quads;
+  unsigned late_seed = 1;
+};
+
+// The benchmarks, as CLI11 subcommands (each one is true once parsed if it was named).
+struct Commands {
+  CLI::App *step, *haptic, *timer, *accuracy, *stability, *limit, *fidelity, *late_ticks, *tactile;
+};
+
+CLI::App* add_step(CLI::App& cli, Options& o) {
+  StepOptions& s = o.step;
+  auto* step = cli.add_subcommand("step", "time the cloth step of a scene, headless");
+  step->add_option("--scene", s.scene_path, "scene file (TOML)")->required();
+  step->add_option("--solver", s.solver, "pcg, cholmod or cholmod-supernodal (default: the scene's)");
+  step->add_option("--dt", s.dt, "time step, s (default: the scene's)")->check(opts::positive(1.0, "s"));
+  step->add_option("--alpha", s.alpha, "alpha in [0.5, 1] (default: the scene's)")->check(opts::number_in(0.5, 1.0));
+  step->add_option("--pcg-tolerance", s.tol, "relative residual of the PCG solve")
       ->check(opts::number_in(0.0, 1.0, true));
-  step->add_option("--steps", steps, "number of steps from the rest state")->check(CLI::Range(1L, 100000000L));
-  std::string preconditioner, simd;
-  step->add_option("--pcg-preconditioner", preconditioner, "ssor or block-jacobi (default: the scene's)")
+  step->add_option("--steps", s.steps, "number of steps from the rest state")->check(CLI::Range(1L, 100000000L));
+  step->add_option("--pcg-preconditioner", s.preconditioner, "ssor or block-jacobi (default: the scene's)")
       ->check(CLI::IsMember({"ssor", "block-jacobi"}));
-  double omega = 0;
-  step->add_option("--pcg-omega", omega, "SSOR's relaxation factor in [1, 2) (default: the scene's)")
+  step->add_option("--pcg-omega", s.omega, "SSOR's relaxation factor in [1, 2) (default: the scene's)")
       ->check(CLI::Range(1.0, 1.999));
-  double refresh = -1;
-  step->add_option("--matrix-refresh", refresh,
+  step->add_option("--matrix-refresh", s.refresh,
                    "an element's change that forms its blocks anew, in [0, 1); 0 forms the matrix whole every "
                    "step (default: the scene's)")
       ->check(CLI::Range(0.0, 0.999));
-  int threads = 0;
-  step->add_option("--threads", threads, "threads of the element assembly, 1 or 2 (default: the scene's)")
+  step->add_option("--threads", s.threads, "threads of the element assembly, 1 or 2 (default: the scene's)")
       ->check(CLI::Range(1, 2));
-  step->add_option("--simd", simd, "instruction level of the element pass: baseline, avx2 or avx512 "
+  step->add_option("--simd", s.simd, "instruction level of the element pass: baseline, avx2 or avx512 "
                    "(default: the widest this CPU runs); a level the CPU lacks is refused")
       ->check(CLI::IsMember({"baseline", "avx2", "avx512"}));
-  step->add_flag("--json", json, "one JSON object on stdout");
-  bool pinch = false;
-  auto* pinch_flag = step->add_flag("--pinch", pinch, "both fingertips pinch the cloth's middle (direct coupling, "
-                                                       "stepped clock, --steps haptic ticks)");
-  double settle_s = 0.0;
-  step->add_option("--settle", settle_s,
+  step->add_flag("--json", o.json, "one JSON object on stdout");
+  auto* pinch_flag = step->add_flag("--pinch", s.pinch, "both fingertips pinch the cloth's middle (direct "
+                                                        "coupling, stepped clock, --steps haptic ticks)");
+  step->add_option("--settle", s.settle_s,
                    "--pinch: bring the cloth to rest first with S s of 20 ms steps (as the haptic scenes' "
                    "preroll does) and pinch it across its surface (default 0: pinch the scene's start state)")
       ->check(opts::number_in(0.0, 60.0))
       ->needs(pinch_flag);
-  bool script = false;
-  auto* script_flag = step->add_flag("--script", script,
+  auto* script_flag = step->add_flag("--script", s.script,
                                      "play the scene's [device] script from the cloth at rest (its preroll), directly "
                                      "coupled on the stepped clock: the step's time by fingertips in contact");
   script_flag->excludes(pinch_flag);
-  std::string refine;  // step --script / --pinch and haptic: overrides haptics.refine
-  step->add_option("--refine", refine,
+  step->add_option("--refine", o.refine,
                    "--script, --pinch: local refinement under the fingertips, auto, on or off (default: the "
                    "scene's haptics.refine)")
       ->check(CLI::IsMember({"auto", "on", "off"}));
+  return step;
+}
 
+CLI::App* add_haptic(CLI::App& cli, Options& o) {
   auto* haptic = cli.add_subcommand(
       "haptic", "the 1 kHz haptic loop in real time with the mock device and the global "
                 "simulation on the other thread: period error, compute time, missed deadlines");
-  std::string haptic_scene = std::string(HAPTICLOTH_SOURCE_DIR) + "/tools/scenes/hanging_square.toml";
-  double haptic_duration = 10.0;
-  haptic->add_option("--scene", haptic_scene, "scene with a [device] table (default: the main job's)");
-  haptic->add_option("--duration", haptic_duration, "s in real time (default 10)")
+  haptic->add_option("--scene", o.haptic_scene, "scene with a [device] table (default: the main job's)");
+  haptic->add_option("--duration", o.haptic_duration, "s in real time (default 10)")
       ->check(opts::positive(3600.0, "s"));
-  haptic->add_flag("--json", json, "one JSON object on stdout");
-  bool no_tactile = false;
-  haptic->add_flag("--no-tactile", no_tactile,
+  haptic->add_flag("--json", o.json, "one JSON object on stdout");
+  haptic->add_flag("--no-tactile", o.no_tactile,
                    "without the device's tactile display (the scene's [device.tactile]): the loop's "
                    "figures with tactile rendering off, to compare");
-  haptic->add_option("--refine", refine,
+  haptic->add_option("--refine", o.refine,
                      "local refinement under the fingertips, auto, on or off (default: the scene's haptics.refine)")
       ->check(CLI::IsMember({"auto", "on", "off"}));
-  int subscribers_help = 0;  // handled before parsing (main's first lines): listed for --help
-  haptic->add_option("--subscribers", subscribers_help,
+  static int listed_only = 0;  // run_elsewhere takes these before parsing: listed for --help
+  haptic->add_option("--subscribers", listed_only,
                      "N subscribers (half zenoh, half LCM) at a 120 Hz cloth rate: the period error "
                      "against none, median of 3 off/on pairs, beside the platform timer");
-  haptic->add_option("--foxglove-clients", subscribers_help,
+  haptic->add_option("--foxglove-clients", listed_only,
                      "N Foxglove WebSocket clients on the live view (on in every run), as --subscribers");
+  return haptic;
+}
 
+CLI::App* add_timer(CLI::App& cli, Options& o) {
   auto* timer = cli.add_subcommand(
       "timer", "the platform's wake-up latency at the haptic thread's scheduling, cyclictest-style "
                "(1 kHz absolute deadlines, no spin): the floor under every real-time figure");
-  long timer_ticks = 10000;
-  int timer_priority = 80;
-  timer->add_option("--ticks", timer_ticks, "wake-ups to measure (default 10000: 10 s)")
+  timer->add_option("--ticks", o.timer_ticks, "wake-ups to measure (default 10000: 10 s)")
       ->check(CLI::Range(1L, 100000000L));
-  timer->add_option("--priority", timer_priority, "SCHED_FIFO priority (default 80, the haptic thread's)")
+  timer->add_option("--priority", o.timer_priority, "SCHED_FIFO priority (default 80, the haptic thread's)")
       ->check(CLI::Range(1, 99));
-  timer->add_flag("--json", json, "one JSON object on stdout");
+  timer->add_flag("--json", o.json, "one JSON object on stdout");
+  return timer;
+}
 
+CLI::App* add_accuracy(CLI::App& cli, Options& o) {
   auto* acc = cli.add_subcommand(
       "accuracy", "work-precision: error against a reference run vs CPU time per simulated "
                   "second, over dt, alpha, solver, tolerance and mesh resolution");
-  bool quick = false;
-  std::string png;
-  acc->add_flag("--quick", quick, "a reduced sweep (about a minute)");
-  bool fine_cloth = false;
-  acc->add_flag("--fine-cloth", fine_cloth, "only the multirate path on the 15842-triangle square "
-                                            "against direct coupling at 1 ms (several minutes)");
-  std::string fine_scene;
-  acc->add_option("--fine-scene", fine_scene, "--fine-cloth: another cloth (a scene file of the "
-                                              "same 0.5 m square, e.g. tools/scenes/hanging_square_4k.toml)");
-  acc->add_flag("--json", json, "one JSON object on one line");
-  acc->add_option("--plot", png, "also write this PNG (and the JSON beside it)")->check(opts::writable_file());
+  acc->add_flag("--quick", o.quick, "a reduced sweep (about a minute)");
+  acc->add_flag("--fine-cloth", o.fine_cloth, "only the multirate path on the 15842-triangle square "
+                                              "against direct coupling at 1 ms (several minutes)");
+  acc->add_option("--fine-scene", o.fine_scene, "--fine-cloth: another cloth (a scene file of the "
+                                                "same 0.5 m square, e.g. tools/scenes/hanging_square_4k.toml)");
+  acc->add_flag("--json", o.json, "one JSON object on one line");
+  acc->add_option("--plot", o.png, "also write this PNG (and the JSON beside it)")->check(opts::writable_file());
+  return acc;
+}
 
+CLI::App* add_stability(CLI::App& cli, Options& o) {
   auto* stab = cli.add_subcommand(
       "stability", "stability stress map: dt x stiffness x fingertip speed x alpha, and long "
                    "randomized fingertip trajectories");
-  long random_steps = 100000;
-  stab->add_flag("--quick", quick, "a reduced map");
-  stab->add_option("--random-steps", random_steps, "haptic ticks of each randomized run (default 1e5)")
+  stab->add_flag("--quick", o.quick, "a reduced map");
+  stab->add_option("--random-steps", o.random_steps, "haptic ticks of each randomized run (default 1e5)")
       ->check(CLI::Range(1L, 100000000L));
-  stab->add_flag("--json", json, "one JSON object on one line");
-  stab->add_option("--plot", png, "also write this PNG (and the JSON beside it)")->check(opts::writable_file());
+  stab->add_flag("--json", o.json, "one JSON object on one line");
+  stab->add_option("--plot", o.png, "also write this PNG (and the JSON beside it)")->check(opts::writable_file());
+  return stab;
+}
 
+CLI::App* add_limit(CLI::App& cli, Options& o) {
   auto* lim = cli.add_subcommand(
       "limit", "our whole step against CHOLMOD's own factorize and solve of the same matrix, "
                "per mesh size, with the factorization's flop count");
-  lim->add_flag("--quick", quick, "a few steps per size");
-  lim->add_flag("--json", json, "one JSON object on one line");
+  lim->add_flag("--quick", o.quick, "a few steps per size");
+  lim->add_flag("--json", o.json, "one JSON object on one line");
+  return lim;
+}
+
+CLI::App* add_fidelity(CLI::App& cli, Options& o) {
   auto* fid = cli.add_subcommand(
       "fidelity", "the touch against physics: drum press vs membrane theory per mesh, pinched "
                   "handkerchief vs its weight (BENCHMARKS.md, Force fidelity)");
-  fid->add_flag("--quick", quick, "two meshes and one pinch");
-  fid->add_flag("--json", json, "one JSON object on one line");
-  std::vector<int> square_quads;
-  fid->add_option("--square-press", square_quads,
+  fid->add_flag("--quick", o.quick, "two meshes and one pinch");
+  fid->add_flag("--json", o.json, "one JSON object on one line");
+  fid->add_option("--square-press", o.square_quads,
                   "instead: the hanging square pressed on these meshes (quads a side, the last the "
                   "reference), e.g. 22,45,178")
       ->delimiter(',')
       ->check(CLI::Range(4, 400));
+  return fid;
+}
+
+CLI::App* add_late_ticks(CLI::App& cli, Options& o) {
   auto* late = cli.add_subcommand(
       "late-ticks", "press, stroke and pinch with ticks 1-20 ms late: energy given beyond "
                     "passivity and force jumps, against the same run on time");
-  unsigned late_seed = 1;
-  late->add_option("--seed", late_seed, "seed of the late moments (default 1)");
-  late->add_flag("--json", json, "one JSON object on one line");
+  late->add_option("--seed", o.late_seed, "seed of the late moments (default 1)");
+  late->add_flag("--json", o.json, "one JSON object on one line");
+  return late;
+}
+
+CLI::App* add_tactile(CLI::App& cli, Options& o) {
   auto* tac = cli.add_subcommand(
       "tactile", "strokes over every shipped material's weave through the tactile channel: peak "
                  "against v / lambda, third-octave bands against the surface model (docs/tactile.md)");
-  tac->add_flag("--json", json, "one JSON object on one line");
-  // Listed for --help; they run in their own programs (exec_sibling above, before parsing).
+  tac->add_flag("--json", o.json, "one JSON object on one line");
+  return tac;
+}
+
+// Listed for --help; they run in their own programs (run_elsewhere, before parsing).
+void add_elsewhere(CLI::App& cli) {
   cli.add_subcommand("udp", "rig -> server -> rig round trip of the UDP device on loopback, beside "
                             "the platform's timer (options: hapticloth-bench udp --help)");
   cli.add_subcommand("transport", "publish-to-receive latency of zenoh and LCM on loopback "
                                   "(options: hapticloth-bench transport --help)");
+}
+
+Commands add_commands(CLI::App& cli, Options& o) {
+  Commands c{add_step(cli, o),      add_haptic(cli, o),     add_timer(cli, o),
+             add_accuracy(cli, o),  add_stability(cli, o),  add_limit(cli, o),
+             add_fidelity(cli, o),  add_late_ticks(cli, o), add_tactile(cli, o)};
+  add_elsewhere(cli);
+  return c;
+}
+
+// The benchmarks that return one JSON result (and --plot where it applies), if one was named.
+std::optional<int> run_json_benchmark(const Commands& c, const Options& o) {
+  const std::string src = HAPTICLOTH_SOURCE_DIR;
+  if (*c.accuracy) {
+    const bench::AccuracyOptions a{.quick = o.quick, .source_dir = src, .fine_scene = o.fine_scene};
+    return o.fine_cloth ? finish(bench::fine_cloth(a), o.json, "") : finish(bench::accuracy(a), o.json, o.png);
+  }
+  if (*c.stability)
+    return finish(bench::stability({.quick = o.quick, .source_dir = src, .random_steps = o.random_steps}), o.json, o.png);
+  if (*c.limit) return finish(bench::limit({.quick = o.quick, .source_dir = src}), o.json, "");
+  if (*c.fidelity) return finish(bench::fidelity({.quick = o.quick, .square_press = o.square_quads}), o.json, "");
+  if (*c.late_ticks) return finish(bench::late_ticks({.source_dir = src, .seed = o.late_seed}), o.json, "");
+  if (*c.tactile) return finish(bench::tactile({.source_dir = src}), o.json, "");
+  return std::nullopt;
+}
+
+// --refine: as the scene key haptics.refine would set it (and refused where the key is).
+void apply_refine(const std::string& refine, app::Scene& sc) {
+  if (refine.empty()) return;
+  sc.haptics.coupling.refine = refine == "on" ? haptics::Refine::On : refine == "off" ? haptics::Refine::Off
+                                                                                      : haptics::Refine::Auto;
+  if (sc.haptics.coupling.refine == haptics::Refine::On && sc.rendering == "multirate" &&
+      sc.multirate_model == haptics::LocalModel::Patch)
+    throw std::invalid_argument("--refine on: scene '" + sc.name + "' renders with the patch model, which "
+                                "renders from its own subdivided patch");
+}
+
+// The session report, and beside it the platform's timer over as many ticks, measured right
+// after in the same invocation, with the loop's excess over it.
+int run_haptic(const Options& o) {
+  app::Scene scene = app::load_scene(o.haptic_scene);
+  if (!scene.has_device) throw std::runtime_error(o.haptic_scene + ": no [device] table");
+  apply_refine(o.refine, scene);
+  if (o.no_tactile) scene.device.tactile = devices::TactileCapability{};
+  app::ServeOptions so;
+  so.duration = o.haptic_duration;
+  so.realtime = true;
+  so.json = true;
+  std::ostringstream out;
+  const int rc = app::serve(scene, so, out);
+  nlohmann::json j = nlohmann::json::parse(out.str());
+  const devices::TimerFigures platform = devices::measure_timer(std::lround(o.haptic_duration * 1000.0));
+  j["platform_timer"] = platform.to_json();
+  j["period_error_p99_excess_us"] = j["period_error_us"]["p99"].get<double>() - platform.p99_us;
+  std::cout << j.dump() << "\n";
+  return rc;
+}
+
+int run_timer(const Options& o) {
+  std::cout << devices::measure_timer(o.timer_ticks, 1e-3, o.timer_priority).to_json().dump(o.json ? -1 : 1) << "\n";
+  return 0;
+}
+
+// The scene with step's overrides; false (after saying why) when --simd names a level this CPU
+// lacks.
+bool apply_step_options(const StepOptions& s, app::Scene& scene) {
+  if (!s.solver.empty()) scene.solver = s.solver;
+  if (s.dt > 0) scene.integrator.dt = s.dt;
+  if (s.alpha > 0) scene.integrator.alpha = s.alpha;
+  if (s.tol > 0) scene.pcg.tolerance = s.tol;
+  if (!s.preconditioner.empty())
+    scene.pcg.preconditioner =
+        s.preconditioner == "ssor" ? cloth::PcgPreconditioner::Ssor : cloth::PcgPreconditioner::BlockJacobi;
+  if (s.omega > 0) scene.pcg.ssor_omega = s.omega;
+  if (s.threads > 0) scene.integrator.assembly_threads = s.threads;
+  if (s.refresh >= 0) scene.integrator.matrix_refresh = s.refresh;
+  if (!s.simd.empty()) {
+    const cloth::SimdLevel level = *cloth::parse_simd_level(s.simd);
+    if (!cloth::runs_here(level)) {
+      std::cerr << "hapticloth-bench: --simd " << s.simd << ": this CPU lacks its instructions (it runs "
+                << cloth::to_string(cloth::best_level()) << ")\n";
+      return false;
+    }
+    scene.integrator.simd = level;
+  }
+  scene.integrator.validate();
+  return true;
+}
+
+// `step`: the headless run, a scripted run (--script) or a pinch (--pinch).
+int run_step(const Options& o) {
+  const StepOptions& s = o.step;
+  app::Scene scene = app::load_scene(s.scene_path);
+  if (!apply_step_options(s, scene)) return 2;
+  apply_refine(o.refine, scene);
+  const int indent = o.json ? -1 : 1;
+  if (s.script) {
+    std::cout << bench::script_step(scene).dump(indent) << "\n";
+    return 0;
+  }
+  if (s.pinch) {
+    std::cout << bench::pinch_step(scene, s.steps / scene.haptics.haptic_rate, s.settle_s).dump(indent) << "\n";
+    return 0;
+  }
+  const app::RunSummary r = app::run_headless(scene, s.steps);
+  std::cout << (o.json ? r.to_json() + "\n" : r.to_text());
+  return r.finite ? 0 : 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (const std::optional<int> rc = run_elsewhere(argc, argv)) return *rc;
+  if (const std::optional<int> rc = refuse_unknown_benchmark(argc, argv)) return *rc;
+  Options o;
+  CLI::App cli{"hapticloth-bench: benchmarks with machine-readable output"};
+  cli.require_subcommand(1);
+  const Commands c = add_commands(cli, o);
   if (const int rc = opts::parse(cli, argc, argv); rc >= 0) return rc;
-
-  // The benchmarks that return one JSON result, and whether --plot applies to them.
-  struct JsonBenchmark {
-    const CLI::App* command;
-    std::function<nlohmann::json()> run;
-    bool plot;
-  };
-  const std::string source_dir = HAPTICLOTH_SOURCE_DIR;
-  const JsonBenchmark json_benchmarks[] = {
-      {acc, [&] {
-         const bench::AccuracyOptions o{.quick = quick, .source_dir = source_dir, .fine_scene = fine_scene};
-         return fine_cloth ? bench::fine_cloth(o) : bench::accuracy(o);
-       }, !fine_cloth},
-      {stab, [&] { return bench::stability({.quick = quick, .source_dir = source_dir, .random_steps = random_steps}); },
-       true},
-      {lim, [&] { return bench::limit({.quick = quick, .source_dir = source_dir}); }, false},
-      {fid, [&] { return bench::fidelity({.quick = quick, .square_press = square_quads}); }, false},
-      {late, [&] { return bench::late_ticks({.source_dir = source_dir, .seed = late_seed}); }, false},
-      {tac, [&] { return bench::tactile({.source_dir = source_dir}); }, false},
-  };
-
   try {
-    for (const JsonBenchmark& b : json_benchmarks)
-      if (*b.command) return finish(b.run(), json, b.plot ? png : "");
-    // --refine: as the scene key haptics.refine would set it (and refused where the key is).
-    const auto apply_refine = [&](app::Scene& sc) {
-      if (refine.empty()) return;
-      sc.haptics.coupling.refine = refine == "on" ? haptics::Refine::On : refine == "off" ? haptics::Refine::Off
-                                                                                          : haptics::Refine::Auto;
-      if (sc.haptics.coupling.refine == haptics::Refine::On && sc.rendering == "multirate" &&
-          sc.multirate_model == haptics::LocalModel::Patch)
-        throw std::invalid_argument("--refine on: scene '" + sc.name + "' renders with the patch model, which "
-                                    "renders from its own subdivided patch");
-    };
-    if (*haptic) {
-      app::Scene scene = app::load_scene(haptic_scene);
-      if (!scene.has_device) throw std::runtime_error(haptic_scene + ": no [device] table");
-      apply_refine(scene);
-      if (no_tactile) scene.device.tactile = devices::TactileCapability{};
-      app::ServeOptions so;
-      so.duration = haptic_duration;
-      so.realtime = true;
-      so.json = true;
-      std::ostringstream out;
-      const int rc = app::serve(scene, so, out);
-      // The session report, and beside it the platform's timer over as many ticks, measured
-      // right after in the same invocation, with the loop's excess over it.
-      nlohmann::json j = nlohmann::json::parse(out.str());
-      const devices::TimerFigures platform = devices::measure_timer(std::lround(haptic_duration * 1000.0));
-      j["platform_timer"] = platform.to_json();
-      const double loop_p99 = j["period_error_us"]["p99"].get<double>();
-      j["period_error_p99_excess_us"] = loop_p99 - platform.p99_us;
-      std::cout << j.dump() << "\n";
-      return rc;
-    }
-    if (*timer) {
-      std::cout << devices::measure_timer(timer_ticks, 1e-3, timer_priority).to_json().dump(json ? -1 : 1) << "\n";
-      return 0;
-    }
-    app::Scene scene = app::load_scene(scene_path);
-    if (!solver.empty()) scene.solver = solver;
-    if (dt > 0) scene.integrator.dt = dt;
-    if (alpha > 0) scene.integrator.alpha = alpha;
-    if (tol > 0) scene.pcg.tolerance = tol;
-    if (!preconditioner.empty())
-      scene.pcg.preconditioner = preconditioner == "ssor" ? cloth::PcgPreconditioner::Ssor : cloth::PcgPreconditioner::BlockJacobi;
-    if (omega > 0) scene.pcg.ssor_omega = omega;
-    if (threads > 0) scene.integrator.assembly_threads = threads;
-    if (refresh >= 0) scene.integrator.matrix_refresh = refresh;
-    if (!simd.empty()) {
-      const cloth::SimdLevel level = *cloth::parse_simd_level(simd);
-      if (!cloth::runs_here(level)) {
-        std::cerr << "hapticloth-bench: --simd " << simd << ": this CPU lacks its instructions (it runs "
-                  << cloth::to_string(cloth::best_level()) << ")\n";
-        return 2;
-      }
-      scene.integrator.simd = level;
-    }
-    scene.integrator.validate();
-    apply_refine(scene);
-    if (script) {
-      std::cout << bench::script_step(scene).dump(json ? -1 : 1) << "\n";
-      return 0;
-    }
-    if (pinch) {
-      std::cout << bench::pinch_step(scene, steps / scene.haptics.haptic_rate, settle_s).dump(json ? -1 : 1) << "\n";
-      return 0;
-    }
-    const app::RunSummary r = app::run_headless(scene, steps);
-    std::cout << (json ? r.to_json() + "\n" : r.to_text());
-    return r.finite ? 0 : 1;
+    if (const std::optional<int> rc = run_json_benchmark(c, o)) return *rc;
+    if (*c.haptic) return run_haptic(o);
+    if (*c.timer) return run_timer(o);
+    return run_step(o);
   } catch (const std::exception& e) {
     std::cerr << "hapticloth-bench: " << e.what() << "\n";
     return 2;

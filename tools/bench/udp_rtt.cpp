@@ -39,6 +39,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <optional>
 #include <cerrno>
 #include <cstdint>
 #include <cstdio>
@@ -182,10 +183,8 @@ std::string json(const Percentiles& p) {
   return b;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  Config cfg;
+// The command line into `cfg`; an exit code when it is wrong or asked for help.
+std::optional<int> parse_options(int argc, char** argv, Config& cfg) {
   CLI::App app{"Round trip rig -> UdpDevice -> rig over loopback; prints JSON."};
   app.add_option("--duration", cfg.duration, "s of streaming")->check(hapticloth::opts::number_in(0.1, 3600.0, false, "s"));
   app.add_option("--rate", cfg.rate, "Hz, rig and server loop")->check(hapticloth::opts::number_in(10.0, 10000.0, false, "Hz"));
@@ -204,36 +203,16 @@ int main(int argc, char** argv) {
   if (const int rc = hapticloth::opts::parse(app, argc, argv); rc >= 0) return rc;
   cfg.fifo = !no_fifo;
   cfg.device_clock = clock == "device";
-  // The CPUs kept out of deep idle states, as the server's real-time loop keeps them.
-  const hapticloth::devices::CpuLatencyHold idle;
+  return std::nullopt;
+}
 
-  DeviceOptions opt;
-  opt.driver = "udp";
-  opt.udp_bind = "127.0.0.1:0";
-  opt.fingers = cfg.fingers;
-  opt.rate = cfg.rate;
-  UdpDevice dev(opt);
-  std::string err = dev.configure();
-  if (err.empty()) err = dev.activate();
-  if (!err.empty()) {
-    std::fprintf(stderr, "hapticloth-bench-udp: %s\n", err.c_str());
-    return 1;
-  }
-
-  const Nanos period = static_cast<Nanos>(1e9 / cfg.rate);
-  const long packets = static_cast<long>(cfg.duration * cfg.rate);
-  Timeline tl(static_cast<std::size_t>(packets));
-  const Nanos t0 = now_ns() + 100'000'000;  // both loops start in 100 ms
-  bool rig_fifo = true, fifo_ok = true;
-  std::thread rig(run_rig, std::cref(cfg), dev.local_port(), t0, period, packets, std::ref(tl),
-                  std::ref(rig_fifo));
-  no_timer_slack();
-  if (cfg.fifo) fifo_ok = make_fifo(90);
-
-  // The server loop: read, a spring force, write; until 20 periods after the last packet.
+// The server loop: read, a spring force, write; until 20 periods after the last packet. Returns
+// how late each tick woke, us (see the header).
+std::vector<double> run_server(const Config& cfg, UdpDevice& dev, Nanos t0, Nanos period, long packets,
+                               Timeline& tl) {
   DeviceState state;
   DeviceCommand cmd;
-  std::vector<double> wake_late;  // us: see the header
+  std::vector<double> wake_late;
   wake_late.reserve(static_cast<std::size_t>(packets + 20));
   const DeviceClock device_clock(1e-9 * static_cast<double>(period));
   double last = 1e-9 * static_cast<double>(t0 - period);
@@ -258,37 +237,76 @@ int main(int argc, char** argv) {
     for (int i = 0; i < cfg.fingers; ++i) cmd.force[i] = -100.0 * state.finger[i].position;
     dev.write(1e-9 * static_cast<double>(t), cmd);
   }
-  rig.join();
-  dev.deactivate();
-  fifo_ok = fifo_ok && rig_fifo;
+  return wake_late;
+}
 
+// Round trips (sent -> echoed) and the server's turnarounds (taken -> echoed), us.
+struct RoundTrips {
   std::vector<double> rtt, turnaround;
   long not_taken = 0;  // lost, or superseded by a newer packet before the server's next read
+};
+
+RoundTrips round_trips(const Timeline& tl, long packets) {
+  RoundTrips r;
   for (long s = 1; s <= packets; ++s) {
-    if (tl.taken[s] == 0) ++not_taken;
+    if (tl.taken[s] == 0) ++r.not_taken;
     if (tl.echoed[s] == 0) continue;
-    rtt.push_back(1e-3 * static_cast<double>(tl.echoed[s] - tl.sent[s]));
-    if (tl.taken[s] != 0)
-      turnaround.push_back(1e-3 * static_cast<double>(tl.echoed[s] - tl.taken[s]));
+    r.rtt.push_back(1e-3 * static_cast<double>(tl.echoed[s] - tl.sent[s]));
+    if (tl.taken[s] != 0) r.turnaround.push_back(1e-3 * static_cast<double>(tl.echoed[s] - tl.taken[s]));
   }
+  return r;
+}
+
+void print_json(const Config& cfg, const RoundTrips& rt, const std::vector<double>& wake_late, Nanos period,
+                long packets, const UdpDevice& dev, bool fifo_ok, const std::string& idle_note) {
   const auto& c = dev.counters();
-  const double loss =
-      100.0 * static_cast<double>(packets - static_cast<long>(rtt.size())) /
-      static_cast<double>(std::max(packets, 1L));
+  const double loss = 100.0 * static_cast<double>(packets - static_cast<long>(rt.rtt.size())) /
+                      static_cast<double>(std::max(packets, 1L));
   // The platform's own timer right after, over as many wake-ups, in this invocation.
   const hapticloth::devices::TimerFigures platform = hapticloth::devices::measure_timer(packets, 1e-9 * period);
-  const Percentiles r = percentiles(rtt);
+  const Percentiles r = percentiles(rt.rtt);
   std::printf(
       "{\"rtt_us\": %s, \"turnaround_us\": %s, \"wake_late_us\": %s, \"loss_pct\": %.3f, "
       "\"samples\": %zu, \"packets\": %ld, \"not_taken\": %ld, \"clock\": \"%s\", \"lead_us\": %.1f, "
       "\"rate_hz\": %.1f, \"dropped\": %llu, \"send_errors\": %llu, \"fifo\": %s, "
       "\"idle_states\": \"%s\", \"platform_timer\": %s, \"rtt_p99_excess_us\": %.1f}\n",
-      json(r).c_str(), json(percentiles(turnaround)).c_str(),
-      json(percentiles(wake_late)).c_str(), loss, rtt.size(), packets, not_taken,
-      cfg.device_clock ? "device" : "loop", cfg.lead_us,
-      cfg.rate, static_cast<unsigned long long>(c.dropped_total()),
-      static_cast<unsigned long long>(c.send_errors),
-      cfg.fifo ? (fifo_ok ? "true" : "\"failed\"") : "false", idle.note().c_str(),
-      platform.to_json().dump().c_str(), r.p99 - platform.p99_us);
+      json(r).c_str(), json(percentiles(rt.turnaround)).c_str(), json(percentiles(wake_late)).c_str(), loss,
+      rt.rtt.size(), packets, rt.not_taken, cfg.device_clock ? "device" : "loop", cfg.lead_us, cfg.rate,
+      static_cast<unsigned long long>(c.dropped_total()), static_cast<unsigned long long>(c.send_errors),
+      cfg.fifo ? (fifo_ok ? "true" : "\"failed\"") : "false", idle_note.c_str(), platform.to_json().dump().c_str(),
+      r.p99 - platform.p99_us);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Config cfg;
+  if (const std::optional<int> rc = parse_options(argc, argv, cfg)) return *rc;
+  // The CPUs kept out of deep idle states, as the server's real-time loop keeps them.
+  const hapticloth::devices::CpuLatencyHold idle;
+  DeviceOptions opt;
+  opt.driver = "udp";
+  opt.udp_bind = "127.0.0.1:0";
+  opt.fingers = cfg.fingers;
+  opt.rate = cfg.rate;
+  UdpDevice dev(opt);
+  std::string err = dev.configure();
+  if (err.empty()) err = dev.activate();
+  if (!err.empty()) {
+    std::fprintf(stderr, "hapticloth-bench-udp: %s\n", err.c_str());
+    return 1;
+  }
+  const Nanos period = static_cast<Nanos>(1e9 / cfg.rate);
+  const long packets = static_cast<long>(cfg.duration * cfg.rate);
+  Timeline tl(static_cast<std::size_t>(packets));
+  const Nanos t0 = now_ns() + 100'000'000;  // both loops start in 100 ms
+  bool rig_fifo = true, fifo_ok = true;
+  std::thread rig(run_rig, std::cref(cfg), dev.local_port(), t0, period, packets, std::ref(tl), std::ref(rig_fifo));
+  no_timer_slack();
+  if (cfg.fifo) fifo_ok = make_fifo(90);
+  const std::vector<double> wake_late = run_server(cfg, dev, t0, period, packets, tl);
+  rig.join();
+  dev.deactivate();
+  print_json(cfg, round_trips(tl, packets), wake_late, period, packets, dev, fifo_ok && rig_fifo, idle.note());
   return 0;
 }

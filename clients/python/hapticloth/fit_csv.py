@@ -68,129 +68,149 @@ def _parse_number(path: str, lineno: int, what: str, text: str) -> float:
     return value
 
 
-def read_measured(path: str) -> Measured:
-    """Read a measured-curves CSV; raises InputError (FILE:LINE: message) on bad input."""
+def _read_lines(path: str) -> list[str]:
     check_input_file(path)
     try:
         with open(path, encoding="utf-8") as f:
-            lines = f.read().splitlines()
+            return f.read().splitlines()
     except UnicodeDecodeError as e:
         raise InputError(path, 1, f"not a UTF-8 text file ({e.reason})") from None
 
-    header: dict[str, str] = {}
-    header_lines: dict[str, int] = {}
-    last_key: str | None = None
+
+class _Header:
+    """The '# key: value' comment lines (a line indented past '# ' continues the last key)."""
+
+    def __init__(self):
+        self.values: dict[str, str] = {}
+        self.lines: dict[str, int] = {}
+        self._last: str | None = None
+
+    def read_comment(self, lineno: int, raw: str) -> None:
+        content = raw.lstrip()[1:]
+        if content.startswith(" "):
+            content = content[1:]
+        if content[:1].isspace() and self._last is not None:
+            self.values[self._last] += " " + content.strip()
+            return
+        m = re.match(r"([A-Za-z_][A-Za-z0-9_]*)\s*:\s*(.*)$", content)
+        self._last = m.group(1).lower() if m else None
+        if m:
+            self.values[self._last] = m.group(2).strip()
+            self.lines[self._last] = lineno
+
+    def end_comments(self) -> None:
+        self._last = None
+
+
+def _column_row(path: str, lineno: int, line: str, fields: list[str]) -> list[str]:
+    """The columns the header row names, in its order."""
+    expected = ",".join(COLUMNS)
+    lowered = [x.lower() for x in fields]
+    if not any(c in lowered for c in COLUMNS):
+        raise InputError(path, lineno, f"missing header row: expected '{expected}', got {line!r}")
+    for c in COLUMNS:
+        if c not in lowered:
+            raise InputError(path, lineno, f"header row lacks column '{c}' (expected '{expected}')")
+    for c in lowered:
+        if c not in COLUMNS:
+            raise InputError(path, lineno, f"header row has unknown column {c!r} (expected '{expected}')")
+    if len(set(lowered)) != len(lowered):
+        raise InputError(path, lineno, "header row repeats a column")
+    return lowered
+
+
+def _check_point(path: str, lineno: int, row: dict[str, str], test: str, strain: float, stress: float,
+                 previous: list[tuple[int, float, float]]) -> None:
+    """A data point within range, after the test's previous one, and not negative in tension."""
+    if abs(stress) > MAX_ABS_STRESS:
+        raise InputError(
+            path, lineno, f"stress {row['stress']} is outside -{MAX_ABS_STRESS:g}..{MAX_ABS_STRESS:g} N/m")
+    if abs(strain) > MAX_ABS_STRAIN[test]:
+        unit = "rad: a shear angle, not degrees" if test == "shear" else "a fraction, not percent"
+        raise InputError(
+            path, lineno,
+            f"strain {row['strain']} of test '{test}' is beyond {MAX_ABS_STRAIN[test]:.4g} "
+            f"in size (strain is {unit})")
+    if previous and not strain > previous[-1][1]:
+        raise InputError(
+            path, lineno,
+            f"strain {row['strain']} of test '{test}' is not greater than the previous "
+            f"one ({previous[-1][1]:g} on line {previous[-1][0]}): strains must be strictly "
+            "increasing within a test")
+    if test != "shear" and strain < 0.0:
+        raise InputError(
+            path, lineno,
+            f"negative strain {row['strain']} in tensile test '{test}' (the loading branch "
+            "starts at strain 0)")
+
+
+def _data_row(path: str, lineno: int, columns: list[str], fields: list[str],
+              rows: dict[str, list[tuple[int, float, float]]]) -> None:
+    """Appends one data row's (line, strain, stress) to its test's rows."""
+    if len(fields) != len(columns):
+        raise InputError(
+            path, lineno,
+            f"expected {len(columns)} comma-separated values ({','.join(columns)}), got {len(fields)}")
+    row = dict(zip(columns, fields))
+    test = row["test"].lower()
+    if test not in CURVES:
+        raise InputError(path, lineno, f"unknown test {row['test']!r} (expected weft, warp or shear)")
+    strain = _parse_number(path, lineno, "strain", row["strain"])
+    stress = _parse_number(path, lineno, "stress", row["stress"])
+    _check_point(path, lineno, row, test, strain, stress, rows[test])
+    rows[test].append((lineno, strain, stress))
+
+
+def _areal_density(path: str, header: _Header) -> float:
+    if DENSITY_KEY not in header.values:
+        raise InputError(path, 1, f"missing header line '# {DENSITY_KEY}: VALUE'")
+    dline = header.lines[DENSITY_KEY]
+    text = header.values[DENSITY_KEY].split()[0] if header.values[DENSITY_KEY] else "''"
+    density = _parse_number(path, dline, DENSITY_KEY, text)
+    if not density > 0.0:
+        raise InputError(path, dline, f"{DENSITY_KEY} must be > 0, got {text}")
+    return density
+
+
+def _curve(path: str, test: str, r: list[tuple[int, float, float]], header_row_line: int) -> Curve:
+    """One test's rows as a curve, with enough distinct points for the smallest model."""
+    if not r:
+        raise InputError(path, header_row_line, f"missing test '{test}': the file needs weft, warp and shear rows")
+    strain = np.array([x[1] for x in r])
+    stress = np.array([x[2] for x in r])
+    distinct = np.unique(np.abs(strain[strain != 0.0])).size
+    need = fit_parameter_count(1)
+    if distinct < need:
+        raise InputError(
+            path, r[0][0],
+            f"too few points in test '{test}': {distinct} at distinct nonzero "
+            f"{'|strain|' if test == 'shear' else 'strain'}, the smallest model "
+            f"(1 segment) has {need} parameters")
+    return Curve(strain, stress, r[0][0])
+
+
+def read_measured(path: str) -> Measured:
+    """Read a measured-curves CSV; raises InputError (FILE:LINE: message) on bad input."""
+    lines = _read_lines(path)
+    header = _Header()
     columns: list[str] | None = None
     header_row_line = 0
     rows: dict[str, list[tuple[int, float, float]]] = {c: [] for c in CURVES}
-
     for lineno, raw in enumerate(lines, start=1):
         line = raw.strip()
         if not line:
             continue
         if line.startswith("#"):
-            content = raw.lstrip()[1:]
-            if content.startswith(" "):
-                content = content[1:]
-            if content[:1].isspace() and last_key is not None:
-                header[last_key] += " " + content.strip()
-                continue
-            m = re.match(r"([A-Za-z_][A-Za-z0-9_]*)\s*:\s*(.*)$", content)
-            if m:
-                last_key = m.group(1).lower()
-                header[last_key] = m.group(2).strip()
-                header_lines[last_key] = lineno
-            else:
-                last_key = None
+            header.read_comment(lineno, raw)
             continue
-        last_key = None
+        header.end_comments()
         fields = [x.strip() for x in line.split(",")]
         if columns is None:
-            lowered = [x.lower() for x in fields]
-            if not any(c in lowered for c in COLUMNS):
-                raise InputError(
-                    path, lineno,
-                    f"missing header row: expected '{','.join(COLUMNS)}', got {line!r}")
-            for c in COLUMNS:
-                if c not in lowered:
-                    raise InputError(
-                        path, lineno,
-                        f"header row lacks column '{c}' (expected '{','.join(COLUMNS)}')")
-            for c in lowered:
-                if c not in COLUMNS:
-                    raise InputError(
-                        path, lineno,
-                        f"header row has unknown column {c!r} (expected '{','.join(COLUMNS)}')")
-            if len(set(lowered)) != len(lowered):
-                raise InputError(path, lineno, "header row repeats a column")
-            columns = lowered
-            header_row_line = lineno
-            continue
-        if len(fields) != len(columns):
-            raise InputError(
-                path, lineno,
-                f"expected {len(columns)} comma-separated values ({','.join(columns)}), "
-                f"got {len(fields)}")
-        row = dict(zip(columns, fields))
-        test = row["test"].lower()
-        if test not in CURVES:
-            raise InputError(
-                path, lineno, f"unknown test {row['test']!r} (expected weft, warp or shear)")
-        strain = _parse_number(path, lineno, "strain", row["strain"])
-        stress = _parse_number(path, lineno, "stress", row["stress"])
-        if abs(stress) > MAX_ABS_STRESS:
-            raise InputError(
-                path, lineno,
-                f"stress {row['stress']} is outside -{MAX_ABS_STRESS:g}..{MAX_ABS_STRESS:g} N/m")
-        if abs(strain) > MAX_ABS_STRAIN[test]:
-            unit = "rad: a shear angle, not degrees" if test == "shear" else "a fraction, not percent"
-            raise InputError(
-                path, lineno,
-                f"strain {row['strain']} of test '{test}' is beyond {MAX_ABS_STRAIN[test]:.4g} "
-                f"in size (strain is {unit})")
-        previous = rows[test]
-        if previous and not strain > previous[-1][1]:
-            raise InputError(
-                path, lineno,
-                f"strain {row['strain']} of test '{test}' is not greater than the previous "
-                f"one ({previous[-1][1]:g} on line {previous[-1][0]}): strains must be strictly "
-                "increasing within a test")
-        if test != "shear" and strain < 0.0:
-            raise InputError(
-                path, lineno,
-                f"negative strain {row['strain']} in tensile test '{test}' (the loading branch "
-                "starts at strain 0)")
-        previous.append((lineno, strain, stress))
-
+            columns, header_row_line = _column_row(path, lineno, line, fields), lineno
+        else:
+            _data_row(path, lineno, columns, fields, rows)
     if columns is None:
-        raise InputError(path, max(len(lines), 1),
-                         f"missing header row '{','.join(COLUMNS)}' (no data rows)")
-    if DENSITY_KEY not in header:
-        raise InputError(path, 1, f"missing header line '# {DENSITY_KEY}: VALUE'")
-    dline = header_lines[DENSITY_KEY]
-    density_text = header[DENSITY_KEY].split()[0] if header[DENSITY_KEY] else "''"
-    density = _parse_number(path, dline, DENSITY_KEY, density_text)
-    if not density > 0.0:
-        raise InputError(path, dline, f"{DENSITY_KEY} must be > 0, got {density_text}")
-
-    curves: dict[str, Curve] = {}
-    for test in CURVES:
-        r = rows[test]
-        if not r:
-            raise InputError(
-                path, header_row_line,
-                f"missing test '{test}': the file needs weft, warp and shear rows")
-        strain = np.array([x[1] for x in r])
-        stress = np.array([x[2] for x in r])
-        distinct = np.unique(np.abs(strain[strain != 0.0])).size
-        need = fit_parameter_count(1)
-        if distinct < need:
-            raise InputError(
-                path, r[0][0],
-                f"too few points in test '{test}': {distinct} at distinct nonzero "
-                f"{'|strain|' if test == 'shear' else 'strain'}, the smallest model "
-                f"(1 segment) has {need} parameters")
-        curves[test] = Curve(strain, stress, r[0][0])
-
-    source = header.get("source")
-    return Measured(path, density, header.get("fabric"), source, curves)
+        raise InputError(path, max(len(lines), 1), f"missing header row '{','.join(COLUMNS)}' (no data rows)")
+    density = _areal_density(path, header)
+    curves = {test: _curve(path, test, rows[test], header_row_line) for test in CURVES}
+    return Measured(path, density, header.values.get("fabric"), header.values.get("source"), curves)
