@@ -47,7 +47,7 @@ ElementPartition partition_elements(const std::vector<ElementRest>& elements,
   std::vector<int> vertices(nv), label(nv, 0);
   // The first cut halves the vertices by number, the rest by position (bisect). The caller's
   // half (parts [0, parts/2), which the assembly's caller claims first) is then the mesh's
-  // first half, as the PCG's first part is (solver_pcg: sweep_order), so the rows a thread
+  // first half, as the PCG's first part is (pcg_ordering.cpp: sweep_order), so the rows a thread
   // assembles are the rows it sweeps and stay in its core's cache. A mesh numbered so that the
   // cut by number crosses far more elements than one by position is cut by position throughout.
   std::vector<int> by_number(nv, 0);

@@ -1,5 +1,5 @@
 // The PCG's block-sparse copy of the system matrix (Bsr) and the 4-lane arithmetic on its 3x3
-// blocks that the product and the Gauss-Seidel sweeps share. Internal to solver_pcg.cpp.
+// blocks that the product and the Gauss-Seidel sweeps share. Internal to the PCG solver (pcg_solver.hpp).
 #pragma once
 
 #if defined(__AVX__)
