@@ -127,34 +127,35 @@ Status CompositeDevice::read(double now, DeviceState& state) noexcept {
   return Status::Ok;
 }
 
-// Finger i's force to part i, through the part's own gate (its watchdog and fade).
-Status CompositeDevice::write(double now, const DeviceCommand& cmd) noexcept {
+// send(part, i) for each part, then the parts' counters summed: the worst status.
+template <class Send>
+Status CompositeDevice::to_each_part(Send&& send) noexcept {
   Status worst = Status::Ok;
-  for (std::size_t i = 0; i < parts_.size(); ++i) {
-    Part& p = parts_[i];
-    DeviceCommand one, gated;
-    one.force[0] = cmd.force[i];
-    one.flags = cmd.flags;
-    p.gate.apply(now, p.state.received_time, one, gated);
-    worst = worse(worst, p.device->write(now, gated));
-  }
+  for (std::size_t i = 0; i < parts_.size(); ++i) worst = worse(worst, send(parts_[i], i));
   sum_counters();
   return worst;
 }
 
+// Finger i's force to part i, through the part's own gate (its watchdog and fade).
+Status CompositeDevice::write(double now, const DeviceCommand& cmd) noexcept {
+  return to_each_part([&](Part& p, std::size_t i) {
+    DeviceCommand one, gated;
+    one.force[0] = cmd.force[i];
+    one.flags = cmd.flags;
+    p.gate.apply(now, p.state.received_time, one, gated);
+    return p.device->write(now, gated);
+  });
+}
+
 // Finger i's tactile frame to part i, through the part's own gate (its fade).
 Status CompositeDevice::write_tactile(double now, const TactileCommand& cmd) noexcept {
-  Status worst = Status::Ok;
-  for (std::size_t i = 0; i < parts_.size(); ++i) {
-    Part& p = parts_[i];
+  return to_each_part([&](Part& p, std::size_t i) {
     TactileCommand one, gated;
     one.finger[0] = cmd.finger[i];
     one.flags = cmd.flags;
     p.gate.apply_tactile(one, gated);
-    worst = worse(worst, p.device->write_tactile(now, gated));
-  }
-  sum_counters();
-  return worst;
+    return p.device->write_tactile(now, gated);
+  });
 }
 
 void CompositeDevice::sum_counters() noexcept {

@@ -17,21 +17,19 @@
 
 namespace hapticloth::devices {
 
-class CompositeDevice final : public Device {
+class CompositeDevice final : public DeviceDriver {
  public:
   /// Throws std::invalid_argument naming the part and field for a configuration it cannot use
   /// (fewer than two parts, a part that is not a one-finger streaming driver, a bad udp_bind).
   explicit CompositeDevice(const DeviceOptions& opt);
 
   // The Device interface (hal/device.hpp).
-  const DeviceInfo& info() const override { return info_; }
   std::string configure() override;
   std::string activate() override;
   void deactivate() override;
   Status read(double now, DeviceState& state) noexcept override;
   Status write(double now, const DeviceCommand& cmd) noexcept override;
   Status write_tactile(double now, const TactileCommand& cmd) noexcept override;
-  const DeviceCounters& counters() const override { return counters_; }
   int part_count() const override { return static_cast<int>(parts_.size()); }
   const Device& part(int i) const override { return *parts_[static_cast<std::size_t>(i)].device; }
   const GateCounters* part_gate(int i) const override { return &parts_[static_cast<std::size_t>(i)].gate.counters(); }
@@ -42,11 +40,11 @@ class CompositeDevice final : public Device {
     SafetyGate gate;         // the part's own watchdog, fade and counters
     DeviceState state;       // its newest sample (one finger)
   };
+  template <class Send>
+  Status to_each_part(Send&& send) noexcept;
   void sum_counters() noexcept;
 
-  DeviceInfo info_;
   std::vector<Part> parts_;
-  DeviceCounters counters_;
   DeviceState state_;
 };
 

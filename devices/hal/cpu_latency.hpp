@@ -1,9 +1,9 @@
 // Keeps the CPUs out of deep idle states while held, through the kernel's PM QoS interface
 // (/dev/cpu_dma_latency: write the tolerated wake-up latency, 0 us; the request lasts while the
-// file stays open). A thread sleeping to a 1 kHz deadline then wakes in 18 us on average on
-// this machine instead of 45 us (cyclictest, which holds the same request, against
-// `cyclictest --laptop`, which does not). The haptic loop holds it for a real-time run;
-// `hapticloth-bench timer` and `udp` hold it too, so that they measure what the loop gets.
+// file stays open). A thread sleeping to a 1 kHz deadline then wakes sooner, as the CPU need not
+// leave a deep idle state first (docs/haptic-loop.md, 'Idle states and the wake-up'). The
+// haptic loop holds it for a real-time run; `hapticloth-bench timer` and `udp` hold it too, so
+// that they measure what the loop gets.
 #pragma once
 
 #include <string>

@@ -15,6 +15,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 
 #include <Eigen/Core>
 
@@ -169,6 +170,20 @@ class Device {
     (void)i;
     return nullptr;
   }
+};
+
+/// What every driver keeps: its description and its counters, which the Device interface reads.
+class DeviceDriver : public Device {
+ public:
+  const DeviceInfo& info() const override { return info_; }
+  const DeviceCounters& counters() const override { return counters_; }
+
+ protected:
+  DeviceDriver() = default;
+  explicit DeviceDriver(DeviceInfo info) : info_(std::move(info)) {}
+
+  DeviceInfo info_;
+  DeviceCounters counters_;
 };
 
 }  // namespace hapticloth::devices

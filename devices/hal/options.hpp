@@ -4,6 +4,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "hal/device.hpp"
@@ -41,17 +42,15 @@ struct DeviceOptions {
   std::string replay_path;            ///< device log CSV to play back
 };
 
-/// The DeviceInfo of a driver whose limits come from the options (mock, replay, remote).
-inline DeviceInfo device_info(const DeviceOptions& o, const char* name) {
-  DeviceInfo i;
-  i.name = name;
-  i.fingers = o.fingers;
-  i.workspace = o.workspace;
-  i.max_force = o.max_force;
-  i.max_stiffness = o.max_stiffness;
-  i.nominal_rate = o.rate;
-  i.tactile = o.tactile;
-  return i;
+/// The DeviceInfo of a driver whose limits come from the options (mock, replay, remote, udp).
+inline DeviceInfo device_info(const DeviceOptions& o, std::string name) {
+  return {.name = std::move(name),
+          .fingers = o.fingers,
+          .workspace = o.workspace,
+          .max_force = o.max_force,
+          .max_stiffness = o.max_stiffness,
+          .nominal_rate = o.rate,
+          .tactile = o.tactile};
 }
 
 }  // namespace hapticloth::devices

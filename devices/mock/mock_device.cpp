@@ -6,10 +6,10 @@
 
 namespace hapticloth::devices {
 
-MockDevice::MockDevice(const DeviceOptions& opt) : opt_(opt), info_(device_info(opt, "mock")) {}
+MockDevice::MockDevice(const DeviceOptions& opt) : DeviceDriver(device_info(opt, "mock")), opt_(opt) {}
 
 MockDevice::MockDevice(const DeviceOptions& opt, Trajectory tr)
-    : opt_(opt), info_(device_info(opt, "mock")), tr_(std::move(tr)), have_tr_(true) {}
+    : DeviceDriver(device_info(opt, "mock")), opt_(opt), tr_(std::move(tr)), have_tr_(true) {}
 
 std::string MockDevice::configure() {
   if (const std::string e = devices::validate(info_); !e.empty()) return "mock: " + e;

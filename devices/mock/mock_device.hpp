@@ -25,21 +25,19 @@ struct TactileRecord {
   TactileCommand last;
 };
 
-class MockDevice final : public Device {
+class MockDevice final : public DeviceDriver {
  public:
   explicit MockDevice(const DeviceOptions& opt);
   /// With a trajectory given directly (tests).
   MockDevice(const DeviceOptions& opt, Trajectory tr);
 
   // The Device interface (hal/device.hpp).
-  const DeviceInfo& info() const override { return info_; }
   std::string configure() override;
   std::string activate() override;
   void deactivate() override;
   Status read(double now, DeviceState& state) noexcept override;
   Status write(double now, const DeviceCommand& cmd) noexcept override;
   Status write_tactile(double now, const TactileCommand& cmd) noexcept override;
-  const DeviceCounters& counters() const override { return counters_; }
   const TactileRecord& tactile_record() const { return tactile_; }
 
   /// The streamed device log (--record): rows written, dropped.
@@ -50,12 +48,10 @@ class MockDevice final : public Device {
 
  private:
   DeviceOptions opt_;
-  DeviceInfo info_;
   Trajectory tr_;
   bool have_tr_ = false;
   double t0_ = -1.0;
   DeviceState last_;
-  DeviceCounters counters_;
   DeviceLogWriter record_;
   TactileRecord tactile_;
 };

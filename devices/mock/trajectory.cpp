@@ -191,8 +191,8 @@ struct Builder {
 };
 
 // A parsed trajectory script and its typed reads; every error is a std::invalid_argument
-// "PATH:LINE: key 'step[2].depth': message". (server/app's TomlFile reads scenes the same way,
-// but devices/ does not depend on server/.)
+// "PATH:LINE: key 'step[2].depth': message", as a scene file's are (devices/ does not depend on
+// server/, so it has its own reader).
 struct Script {
   std::string path;
   toml::table root;

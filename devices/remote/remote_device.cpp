@@ -17,7 +17,7 @@ std::string fmt(const Vec3& p) {
 }
 }  // namespace
 
-RemoteDevice::RemoteDevice(const DeviceOptions& opt) : opt_(opt), info_(device_info(opt, "remote")) {}
+RemoteDevice::RemoteDevice(const DeviceOptions& opt) : DeviceDriver(device_info(opt, "remote")), opt_(opt) {}
 
 std::string RemoteDevice::configure() {
   if (const std::string e = devices::validate(info_); !e.empty()) return "remote: " + e;

@@ -28,7 +28,7 @@
 
 namespace hapticloth::devices {
 
-class RemoteDevice final : public Device, public RemoteCommandSink {
+class RemoteDevice final : public DeviceDriver, public RemoteCommandSink {
  public:
   static constexpr int kMaxPoints = 4096;     ///< points per command
   /// m: how far the first point may be from the finger's position at submit() beyond what the
@@ -39,13 +39,11 @@ class RemoteDevice final : public Device, public RemoteCommandSink {
   explicit RemoteDevice(const DeviceOptions& opt);
 
   // The Device interface (hal/device.hpp).
-  const DeviceInfo& info() const override { return info_; }
   std::string configure() override;
   std::string activate() override;
   void deactivate() override;
   Status read(double now, DeviceState& state) noexcept override;
   Status write(double now, const DeviceCommand& cmd) noexcept override;
-  const DeviceCounters& counters() const override { return counters_; }
 
   std::string submit(const TrajectoryCommand& cmd) override;
   void set_max_speed(double v) override;
@@ -75,7 +73,6 @@ class RemoteDevice final : public Device, public RemoteCommandSink {
   void take(Follow& fo, double now, const FingerState& at) noexcept;
 
   DeviceOptions opt_;
-  DeviceInfo info_;
   std::atomic<double> max_speed_{1.0};
   std::mutex submit_mu_;                          // writers of the slots (never the RT side)
   std::vector<std::unique_ptr<TripleBuffer<Plan>>> slot_;  // per finger
@@ -86,7 +83,6 @@ class RemoteDevice final : public Device, public RemoteCommandSink {
   double batch_t0_ = 0.0;
   DeviceState last_;
   DeviceCommand last_cmd_;
-  DeviceCounters counters_;
 };
 
 std::unique_ptr<Device> make_remote_device(const DeviceOptions& opt);

@@ -5,7 +5,7 @@
 
 namespace hapticloth::devices {
 
-ReplayDevice::ReplayDevice(const DeviceOptions& opt) : opt_(opt), info_(device_info(opt, "replay")) {}
+ReplayDevice::ReplayDevice(const DeviceOptions& opt) : DeviceDriver(device_info(opt, "replay")), opt_(opt) {}
 
 std::string ReplayDevice::configure() {
   if (opt_.replay_path.empty()) return "replay: no device log given (replay_path / --replay FILE)";

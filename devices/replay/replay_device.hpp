@@ -13,17 +13,15 @@
 
 namespace hapticloth::devices {
 
-class ReplayDevice final : public Device {
+class ReplayDevice final : public DeviceDriver {
  public:
   explicit ReplayDevice(const DeviceOptions& opt);
 
-  const DeviceInfo& info() const override { return info_; }
   std::string configure() override;
   std::string activate() override;
   void deactivate() override {}
   Status read(double now, DeviceState& state) noexcept override;
   Status write(double now, const DeviceCommand& cmd) noexcept override;
-  const DeviceCounters& counters() const override { return counters_; }
 
   /// The recorded force on `finger` nearest to log time t (N).
   Vec3 recorded_force(int finger, double t) const noexcept;
@@ -31,12 +29,10 @@ class ReplayDevice final : public Device {
 
  private:
   DeviceOptions opt_;
-  DeviceInfo info_;
   Trajectory positions_{2};
   std::vector<std::vector<LogRow>> rows_;  // per finger
   double t0_ = -1.0;
   DeviceState last_;
-  DeviceCounters counters_;
 };
 
 std::unique_ptr<Device> make_replay_device(const DeviceOptions& opt);

@@ -60,13 +60,7 @@ UdpDevice::UdpDevice(const DeviceOptions& opt) : opt_(opt) {
   if (opt.fingers < 1 || opt.fingers > kMaxFingers)
     throw std::invalid_argument("fingers " + std::to_string(opt.fingers) + ": a UDP rig has 1 to " +
                                 std::to_string(kMaxFingers));
-  info_.name = "udp " + opt.udp_bind;
-  info_.fingers = opt.fingers;
-  info_.workspace = opt.workspace;
-  info_.max_force = opt.max_force;
-  info_.max_stiffness = opt.max_stiffness;
-  info_.nominal_rate = opt.rate;
-  info_.tactile = opt.tactile;
+  info_ = device_info(opt, "udp " + opt.udp_bind);
 }
 
 UdpDevice::~UdpDevice() { close_socket(); }

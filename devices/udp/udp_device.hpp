@@ -39,11 +39,11 @@ struct UdpEndpoint {
 /// Returns an empty string on success, else what is wrong (naming `udp_bind`).
 std::string parse_udp_endpoint(const std::string& text, UdpEndpoint& out);
 
-class UdpDevice final : public Device {
+class UdpDevice final : public DeviceDriver {
  public:
   /// Datagrams read per read() call at most (bounds the time read() takes under a flood).
   static constexpr int kMaxDatagramsPerRead = 256;
-  /// Datagrams activate() discards at most (a full receive buffer holds about 8000).
+  /// Datagrams activate() discards at most (far more than a full receive buffer holds).
   static constexpr int kMaxBacklog = 1 << 20;
   /// s/s: how fast the rig's clock may fall behind the loop's (1000 ppm; quartz drifts < 100).
   static constexpr double kClockDrift = 1e-3;
@@ -57,7 +57,6 @@ class UdpDevice final : public Device {
   UdpDevice& operator=(const UdpDevice&) = delete;
 
   // The Device interface (hal/device.hpp).
-  const DeviceInfo& info() const override { return info_; }
   /// Creates, binds and makes non-blocking the socket. Returns the error (for example the port
   /// is in use); never throws.
   std::string configure() override;
@@ -77,7 +76,6 @@ class UdpDevice final : public Device {
   /// Real-time path, with a tactile display declared ([device.tactile]): the tick's tactile
   /// packet to the same peer as the force packets (proto/udp_device.md). Statuses as write().
   Status write_tactile(double now, const TactileCommand& cmd) noexcept override;
-  const DeviceCounters& counters() const override { return counters_; }
   /// The rig streams on its own clock: it can pace the loop (DeviceClock).
   bool paces_loop() const override { return true; }
   /// Real-time path: ppoll on the socket until a datagram is ready (true) or `until` passes.
@@ -100,9 +98,7 @@ class UdpDevice final : public Device {
   bool send_datagram(const std::uint8_t* data, std::size_t n, bool& broken) noexcept;
 
   DeviceOptions opt_;
-  DeviceInfo info_;
   UdpEndpoint bind_;
-  DeviceCounters counters_;
   int fd_ = -1;
   std::uint16_t local_port_ = 0;
 

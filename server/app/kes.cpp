@@ -193,7 +193,7 @@ Specimen shear_specimen(const KesOptions& opt) {
 // Guarded sides: the side edges follow the affine shear, as the middle of an infinitely wide
 // specimen would. With free sides the disturbance of this orthotropic membrane (no Poisson
 // coupling, stiff fibres, soft shear) reaches far into a 20 cm x 5 cm specimen and the clamp
-// force deviates from the law (up to 0.6% for a soft-shear fabric; --free-edges shows it).
+// force deviates from the law (docs/kes.md, 'Simulated Kawabata tests'; --free-edges shows it).
 std::vector<int> guarded_sides(const Specimen& sp, bool free_edges) {
   std::vector<int> sides;
   if (!free_edges)

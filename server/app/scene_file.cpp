@@ -308,7 +308,7 @@ void load_haptics(const TomlFile& f, const toml::table& t, Scene& s) {
     v = f.number_in(t, "haptics", key, v, lo, hi, unit);
   };
   // A haptic loop under 100 Hz renders steps the hand feels; over 10 kHz the period is within
-  // this platform's timer jitter (p99 20-40 us).
+  // this platform's timer jitter (BENCHMARKS.md, 'Real time beside the platform's timer').
   in("rate", h.haptic_rate, 100.0, 10000.0, "Hz");
   in("finger_radius", h.finger.radius, 1e-3, 0.05, "m (a fingertip or a stylus tip)");
   positive("stiffness", h.finger.stiffness, 1e6, "N/m");

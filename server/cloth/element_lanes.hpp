@@ -4,8 +4,8 @@
 //
 // Why lanes: the element algebra (four fibre lengths, three material laws, the factored
 // Jacobian and its nine system blocks) is a long chain of dependent scalar operations; one
-// element at a time the pass took 0.130 ms of the 968-triangle cloth's 0.189 ms step, on lanes
-// 0.080 ms (docs/performance.md).
+// element at a time it took most of a small cloth's step, and on lanes it takes well under
+// that (docs/performance.md, 'Performance of the step').
 //
 // Included only by an instruction level's translation unit (element_pass_lanes.hpp), which
 // defines HAPTICLOTH_SIMD_NS (its namespace) and HAPTICLOTH_SIMD_LANES (doubles per vector: the

@@ -16,8 +16,9 @@ namespace {
 
 // Re-solves of a step taken whole before the active set's line search (line_search_contacts)
 // starts: a set that one re-solve settles, as in a slow stroke, is left to it. Searching from the
-// first, the stroke's Coulomb error per contact went from p99 2.7% to 3.1% (its friction revised
-// at the line search's points), while the cycling it is for takes many re-solves.
+// first revises the stroke's friction at the line search's points and takes its Coulomb error
+// per contact further from the bound (docs/contact.md, 'The model'), while the cycling it is
+// for takes many re-solves.
 constexpr int kPlainRevisions = 1;
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) {
@@ -34,13 +35,14 @@ double ms_since(Clock::time_point t0) {
 // A short step whose solver can settle its contacts' rows alone (LinearSolver::
 // settle_changed: the proxies and the vertices they hold, the rest of the cloth held) revises
 // on those settles instead, and once the contacts ask for nothing more, solves the whole cloth
-// from there and asks them again (confirm_settled). Each whole re-solve of a pinch's release
-// cost about as many iterations as the step's first solve, 5-17, spent on the cloth far from
-// the fingers, while the contacts' decisions are made on the rows they hold
-// (docs/performance.md, "Contacts revised on local settles"). Such a step has no line search:
-// a settle moves only those rows, so it cannot throw the whole cloth clear of a fingertip as a
-// whole re-solve can, and the cycling the search stops is left to the free revisions' bound
-// (FingertipContact::revise); the random two-finger runs' deepest point stays 0.33-0.41 mm.
+// from there and asks them again (confirm_settled). A whole re-solve of a pinch's release
+// costs about as many iterations as the step's first solve, spent on the cloth far from the
+// fingers, while the contacts' decisions are made on the rows they hold (docs/performance.md,
+// "Contacts revised on local settles"). Such a step has no line search: a settle moves only
+// those rows, so it cannot throw the whole cloth clear of a fingertip as a whole re-solve can,
+// and the cycling the search stops is left to the free revisions' bound
+// (FingertipContact::revise); the random two-finger runs stay within the allowed depth
+// (BENCHMARKS.md, 'Stability stress map').
 bool Integrator::revise_contacts(const ClothState& s, double h) {
   released_.clear();
   bool cut = false;  // dv_ is the line search's point short of the re-solve dv_full_
@@ -132,7 +134,8 @@ bool Integrator::resolved(SolveStatus st) {
 // takes the new set's contacts as two-sided; taken whole, it can overshoot: an impact's
 // contacts push the cloth clear, all are released, the cloth falls back in, all are added...
 // (the random two-finger runs of `hapticloth-bench stability` cycled so until the revision cap,
-// and the set frozen there left contacts pulling the cloth 0.47 mm into the fingertip). So
+// and the set frozen there left contacts pulling the cloth into the fingertip: docs/contact.md,
+// 'The model'). So
 // the step goes from the point the set was decided at (dv_from_) towards the re-solve (dv_)
 // only as far as Phi decreases: the root of dPhi/dt on [0, 1], piecewise linear and
 // non-decreasing in t. The quadratic part is (t - 1) delta^T A delta (the re-solve's gradient

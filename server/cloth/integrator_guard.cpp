@@ -14,11 +14,11 @@ namespace hapticloth::cloth {
 
 // |h M g| over the free vertices, N s: the right-hand side of eq. 9 for a cloth that starts to
 // fall. The solves of a step stop at the solver's tolerance of the larger of this and their
-// right-hand side. A cloth at rest has a right-hand side about a thousandth of this (the 4050-
-// triangle square pinched at rest: 1.6e-3 at the median), and relative to that alone its solve
-// would resolve forces a millionth of its weight. The residual so allowed is tolerance |g| |m|
-// (2-norm over the vertices) as a force: 1.7e-5 N on the 4050-triangle square at 1e-3, against
-// fingertip forces of 0.1-1.5 N. A cloth without gravity keeps the relative test.
+// right-hand side. A cloth at rest has a right-hand side about a thousandth of this, and
+// relative to that alone its solve would resolve forces a millionth of its weight. The residual
+// so allowed is tolerance |g| |m| (2-norm over the vertices) as a force, far under the
+// fingertip forces (docs/performance.md, "The script's step, and a cloth at rest solved to its
+// weight's scale"). A cloth without gravity keeps the relative test.
 double Integrator::weight_impulse(double h) const { return h * cfg_.gravity.norm() * free_mass_norm_; }
 
 // A slow blow-up gains a fraction of the energy on every step, which the per-step test
@@ -26,9 +26,9 @@ double Integrator::weight_impulse(double h) const { return h * cfg_.gravity.norm
 // of this step (kinetic, elastic, gravitational: from the assembly) is compared with the previous
 // step's plus the external work done in it, and the energy created is summed with a 0.1 s memory
 // (a stable step creates none on a linear problem; the one linearized solve per step of a
-// stiffening law creates some at large steps: 3-10x the floor when the hanging square is
-// released at dt 40 ms, which then comes to rest); past 10x the energy floor it is an
-// explosion (hapticloth-bench stability: alpha 0.5 with a stiff material).
+// stiffening law creates some at large steps, a few times the floor: docs/scenes.md, 'The
+// slow blow-up test'); past 10x the energy floor it is an explosion (hapticloth-bench
+// stability: alpha 0.5 with a stiff material).
 bool Integrator::slow_blow_up(double h) {
   if (!have_prev_energy_) return false;
   const double gain = energy_old_ - prev_energy_ - last_work_;

@@ -3,8 +3,8 @@
 //
 // Why: a cloth at rest, or held still in a pinch, changes its Jacobian by a few parts in a
 // million a step, yet forming the matrix anew scatters every element's nine blocks into their
-// rows and the PCG then copies every row: 0.2-0.3 ms of the 4050-triangle pinch's 0.5-0.8 ms
-// step (docs/performance.md). Kept, a step adds the blocks of the factors' difference (the
+// rows and the PCG then copies every row: a large share of a pinch's step (docs/performance.md,
+// 'The kept matrix'). Kept, a step adds the blocks of the factors' difference (the
 // blocks are linear in the factors: element_lanes.hpp, kFactors) for the elements that moved,
 // and the solver reloads the rows they reach (LinearSolver::solve_changed). The forces, the
 // right-hand side h (F - alpha h H v) and the energies stay exact every step; only the matrix of

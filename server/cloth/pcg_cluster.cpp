@@ -18,10 +18,10 @@ namespace hapticloth::cloth::pcg {
 
 // Before the iterations, the cluster's rows (the proxies and the vertices they hold, the
 // preconditioner's dense block) solved with the rest of x held: x_C += A_CC^-1 (b - A x)_C,
-// one block Gauss-Seidel step. When contacts change, nearly all of the residual is there
-// (97.5-100% of |r|^2 at the start of the 4050-triangle script's release solves: a proxy is
-// massless, its springs the stiffest terms), and the PCG's first step, one length for every
-// row, takes off a factor of only 3-7 of it. Settled first, the script's stroke took 34% fewer
+// one block Gauss-Seidel step. When contacts change, nearly all of the residual is there (a
+// proxy is massless, its springs the stiffest terms), and the PCG's first step, one length for
+// every row, takes off only a small factor of it (docs/performance.md, "The release's residual,
+// and a floor under the re-solve share"). Settled first, the script's stroke takes fewer
 // iterations (docs/performance.md, "The proxies' rows settled first"). Left as it is when
 // those rows are already within the goal, so that a solved guess stays exactly as it was
 // (the integrator's same-candidate test, Integrator::revise_contacts).
@@ -126,9 +126,9 @@ void PcgSolver::scatter_cluster(const double* c, double* v) const {
 
 // The preconditioner's dense block: the hub rows (proxies) with the nodes their non-zero
 // blocks reach (the vertices in contact), at most kMaxCluster nodes, strongest coupling
-// first. Block-Jacobi alone leaves a vertex's stiff contact to its proxy to the iterations:
-// on the pinched 968-triangle square that doubled them. Returns false if the block is not
-// positive definite.
+// first. Block-Jacobi alone leaves a vertex's stiff contact to its proxy to the iterations,
+// which then take many more (test_solver PcgWithContactHubsMatchesCholmod). Returns false if the
+// block is not positive definite.
 template <class T>
 bool PcgSolver::factor_cluster(const Bsr<T>& M, const SymCsr& A) {
   for (int node : cluster_) {

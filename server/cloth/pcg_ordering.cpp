@@ -21,13 +21,12 @@ namespace hapticloth::cloth::pcg {
 // the parts at once and the separator after them (forward) or before them (backward). The
 // parts are the mesh's first and second half, less the rows of the first that reach the
 // second (a grid's middle row): so the two threads' rows, and their vectors' entries, meet
-// in memory at one place only (on the pinched 4050-triangle square, split so, an iteration's
-// update took 9 us; split along a diagonal, whose cache lines the two cores share on every
-// mesh row, 17 us). A mesh numbered so that this separator is large is split by levels instead
+// in memory at one place only (split along a diagonal instead, the two cores share cache lines
+// on every mesh row, and the update is slower: docs/performance.md, 'Performance of the step').
+// A mesh numbered so that this separator is large is split by levels instead
 // (split_by_levels). Within a part the order is the mesh's. (Each part taken as two runs in
-// turn, so that a sweep advances two chains of rows at once, cost more iterations than it
-// saved: 9.2 -> 9.8 a step on the pinched 4050-triangle square, 7.0 -> 7.8 on the released
-// 15842-triangle one, for 4-7% less time per iteration.)
+// turn, so that a sweep advances two chains of rows at once, makes an iteration cheaper but
+// takes more iterations than that saves: BENCHMARKS.md, 'The limit'.)
 void PcgSolver::sweep_order(const SymCsr& A, const std::vector<int>& hub_rows) {
   const int nb = A.n / 3;
   std::vector<char> hub(nb, 0);

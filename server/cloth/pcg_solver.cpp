@@ -112,8 +112,8 @@ SolveStatus PcgSolver::run(Bsr<T>& M, const SymCsr& A, const double* b, double* 
 }
 
 // A re-solve after a change in a few block rows: those rows reloaded and re-preconditioned,
-// the hubs' blocks reloaded and their dense block factored again. A contact revision of the
-// pinched 968-triangle square then reloads some tens of rows of the matrix, not all of it.
+// the hubs' blocks reloaded and their dense block factored again. A contact revision then
+// reloads the rows of the vertices in contact and the hubs, not the whole matrix.
 template <class T>
 SolveStatus PcgSolver::run_changed(Bsr<T>& M, const SymCsr& A, const int* rows, int count, const double* b,
                           double* x) {
@@ -197,8 +197,8 @@ bool PcgSolver::prepare(Bsr<T>& M, const SymCsr& A) {
 
 // The matrix copy, in kLoadChunks pieces of rows that the pool's two threads take in turn (a
 // late helper leaves the caller more of them), and the hub rows' blocks as one more piece,
-// the helper's first (a scan of the hubs' whole rows: 14 us a step on the pinched
-// 4050-triangle square). False if a diagonal block is not positive definite.
+// the helper's first (a scan of the hubs' whole rows, which reach every node). False if a
+// diagonal block is not positive definite.
 template <class T>
 bool PcgSolver::load(Bsr<T>& M, const SymCsr& A) {
   const int nb = n_ / 3;

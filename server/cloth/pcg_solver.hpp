@@ -67,8 +67,8 @@ class PcgSolver final : public LinearSolver {
   SolveStatus run(Bsr<T>& M, const SymCsr& A, const double* b, double* x, bool load);
 
   // A re-solve after a change in a few block rows: those rows reloaded and re-preconditioned,
-  // the hubs' blocks reloaded and their dense block factored again. A contact revision of the
-  // pinched 968-triangle square then reloads some tens of rows of the matrix, not all of it.
+  // the hubs' blocks reloaded and their dense block factored again. A contact revision then
+  // reloads the rows of the vertices in contact and the hubs, not the whole matrix.
   template <class T>
   SolveStatus run_changed(Bsr<T>& M, const SymCsr& A, const int* rows, int count, const double* b,
                           double* x);
@@ -99,8 +99,8 @@ class PcgSolver final : public LinearSolver {
 
   // The matrix copy, in kLoadChunks pieces of rows that the pool's two threads take in turn (a
   // late helper leaves the caller more of them), and the hub rows' blocks as one more piece,
-  // the helper's first (a scan of the hubs' whole rows: 14 us a step on the pinched
-  // 4050-triangle square). False if a diagonal block is not positive definite.
+  // the helper's first (a scan of the hubs' whole rows, which reach every node). False if a
+  // diagonal block is not positive definite.
   template <class T>
   bool load(Bsr<T>& M, const SymCsr& A);
 
@@ -162,10 +162,10 @@ class PcgSolver final : public LinearSolver {
 
   // Before the iterations, the cluster's rows (the proxies and the vertices they hold, the
   // preconditioner's dense block) solved with the rest of x held: x_C += A_CC^-1 (b - A x)_C,
-  // one block Gauss-Seidel step. When contacts change, nearly all of the residual is there
-  // (97.5-100% of |r|^2 at the start of the 4050-triangle script's release solves: a proxy is
-  // massless, its springs the stiffest terms), and the PCG's first step, one length for every
-  // row, takes off a factor of only 3-7 of it. Settled first, the script's stroke took 34% fewer
+  // one block Gauss-Seidel step. When contacts change, nearly all of the residual is there (a
+  // proxy is massless, its springs the stiffest terms), and the PCG's first step, one length for
+  // every row, takes off only a small factor of it (docs/performance.md, "The release's residual,
+  // and a floor under the re-solve share"). Settled first, the script's stroke takes fewer
   // iterations (docs/performance.md, "The proxies' rows settled first"). Left as it is when
   // those rows are already within the goal, so that a solved guess stays exactly as it was
   // (the integrator's same-candidate test, Integrator::revise_contacts).
@@ -196,11 +196,11 @@ class PcgSolver final : public LinearSolver {
   // product costs one backward and one forward sweep, each over half the blocks: with t =
   // (E + L^T)^-1 p', A' p' = t + (E + L)^-1 (p' + (D - 2E) t), from A = (E + L) + (E + L^T) +
   // D - 2E. So an iteration reads the matrix once, as block-Jacobi's does, and the cloth's
-  // smooth modes converge in fewer (on the pinched 4050-triangle square 23 -> 9 a step). x is
+  // smooth modes converge in fewer (docs/performance.md, 'Performance of the step'). x is
   // carried along (x += alpha t), and so is the true residual r = b - A x (r -= alpha A t, the
   // forward sweep giving A t = L t + p' + (D - E) t), so the solve stops at |r| <= tolerance
   // |b| as block-Jacobi's does. That recursion drifts (A t is a difference of terms up to 1e8
-  // times larger with stiff contact springs: 1e-7 relative in test_solver's pinch), so every
+  // times larger with stiff contact springs; test_solver PcgWithContactHubsMatchesCholmod), so every
   // kRefresh-th sweep also takes r = (E + L) r' = E r' + L r' afresh from the transformed one.
   // An iteration is two passes that the pool's two threads share (sweep_order): the product,
   // and the update with the next z' = E r'.
@@ -265,13 +265,12 @@ class PcgSolver final : public LinearSolver {
   // the parts at once and the separator after them (forward) or before them (backward). The
   // parts are the mesh's first and second half, less the rows of the first that reach the
   // second (a grid's middle row): so the two threads' rows, and their vectors' entries, meet
-  // in memory at one place only (on the pinched 4050-triangle square, split so, an iteration's
-  // update took 9 us; split along a diagonal, whose cache lines the two cores share on every
-  // mesh row, 17 us). A mesh numbered so that this separator is large is split by levels instead
+  // in memory at one place only (split along a diagonal instead, the two cores share cache lines
+  // on every mesh row, and the update is slower: docs/performance.md, 'Performance of the step').
+  // A mesh numbered so that this separator is large is split by levels instead
   // (split_by_levels). Within a part the order is the mesh's. (Each part taken as two runs in
-  // turn, so that a sweep advances two chains of rows at once, cost more iterations than it
-  // saved: 9.2 -> 9.8 a step on the pinched 4050-triangle square, 7.0 -> 7.8 on the released
-  // 15842-triangle one, for 4-7% less time per iteration.)
+  // turn, so that a sweep advances two chains of rows at once, makes an iteration cheaper but
+  // takes more iterations than that saves: BENCHMARKS.md, 'The limit'.)
   void sweep_order(const SymCsr& A, const std::vector<int>& hub_rows);
 
   // The two parts' sweeps run at once on two threads: a block joining them would be a data race
@@ -339,9 +338,9 @@ class PcgSolver final : public LinearSolver {
 
   // The preconditioner's dense block: the hub rows (proxies) with the nodes their non-zero
   // blocks reach (the vertices in contact), at most kMaxCluster nodes, strongest coupling
-  // first. Block-Jacobi alone leaves a vertex's stiff contact to its proxy to the iterations:
-  // on the pinched 968-triangle square that doubled them. Returns false if the block is not
-  // positive definite.
+  // first. Block-Jacobi alone leaves a vertex's stiff contact to its proxy to the iterations,
+  // which then take many more (test_solver PcgWithContactHubsMatchesCholmod). Returns false if the
+  // block is not positive definite.
   template <class T>
   bool factor_cluster(const Bsr<T>& M, const SymCsr& A);
 

@@ -23,11 +23,11 @@ namespace hapticloth::cloth::pcg {
 // product costs one backward and one forward sweep, each over half the blocks: with t =
 // (E + L^T)^-1 p', A' p' = t + (E + L)^-1 (p' + (D - 2E) t), from A = (E + L) + (E + L^T) +
 // D - 2E. So an iteration reads the matrix once, as block-Jacobi's does, and the cloth's
-// smooth modes converge in fewer (on the pinched 4050-triangle square 23 -> 9 a step). x is
+// smooth modes converge in fewer (docs/performance.md, 'Performance of the step'). x is
 // carried along (x += alpha t), and so is the true residual r = b - A x (r -= alpha A t, the
 // forward sweep giving A t = L t + p' + (D - E) t), so the solve stops at |r| <= tolerance
 // |b| as block-Jacobi's does. That recursion drifts (A t is a difference of terms up to 1e8
-// times larger with stiff contact springs: 1e-7 relative in test_solver's pinch), so every
+// times larger with stiff contact springs; test_solver PcgWithContactHubsMatchesCholmod), so every
 // kRefresh-th sweep also takes r = (E + L) r' = E r' + L r' afresh from the transformed one.
 // An iteration is two passes that the pool's two threads share (sweep_order): the product,
 // and the update with the next z' = E r'.

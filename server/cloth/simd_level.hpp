@@ -2,8 +2,8 @@
 //
 // Why levels: the element pass (element_lanes.hpp) works on lanes of doubles, and its speed
 // depends on the lanes matching the CPU's vector registers: 8 doubles split into halves and
-// spilled through memory on a CPU with 256-bit registers ran the 968-triangle step 2.4x slower
-// than lanes of 4 (docs/performance.md, "Instruction levels"). Each level is compiled in its own
+// spilled through memory on a CPU with 256-bit registers ran the step far slower than lanes of
+// 4 (docs/performance.md, "Instruction levels"). Each level is compiled in its own
 // translation unit with its own -march (CMakeLists.txt), so one binary holds all of them and
 // picks at start-up; a build for a baseline CPU (HAPTICLOTH_PORTABLE) runs anywhere.
 #pragma once

@@ -43,7 +43,7 @@ class LinearSolver {
   /// As solve_changed, but solving only the rows that the changed ones hang on, with the rest of
   /// x held: PCG's dense block of the hub rows (the fingertip proxies) and the vertices they
   /// reach most strongly (at most 24 nodes in all; a vertex left out of it is held with the
-  /// rest). A few microseconds, where a whole re-solve takes as many iterations as a step; the
+  /// rest). One dense block solve, where a whole re-solve takes as many iterations as a step; the
   /// contacts decide on that candidate, and the integrator solves the whole system after
   /// (resolve). Only solvers whose settles_locally() is true (after analyze(): PCG with hub
   /// rows in the pattern) implement it.
@@ -81,12 +81,13 @@ class LinearSolver {
 /// The PCG's preconditioner. Both treat the fingertip proxies with the vertices they touch as
 /// one dense block (PcgOptions::hub_block).
 enum class PcgPreconditioner {
-  /// The 3x3 diagonal blocks' inverses: cheap, but the cloth's smooth modes (a 16k-triangle
-  /// square at dt 1 ms: 24 iterations a step at tolerance 1e-3) converge slowly.
+  /// The 3x3 diagonal blocks' inverses: cheap, but the cloth's smooth modes converge slowly: a
+  /// correction moves one vertex an iteration.
   BlockJacobi,
   /// Symmetric block Gauss-Seidel (SSOR with omega = 1) by Eisenstat's trick: an iteration reads
-  /// the matrix once, as block-Jacobi's does, in two sweeps; 2.5x fewer iterations (9 on the
-  /// same square; 23 -> 9 on the pinched 4050-triangle square).
+  /// the matrix once, as block-Jacobi's does, in two sweeps, and a sweep carries a correction
+  /// across the cloth, so it takes a fraction of block-Jacobi's iterations (docs/performance.md,
+  /// 'Performance of the step').
   Ssor,
 };
 const char* to_string(PcgPreconditioner p);
@@ -106,8 +107,8 @@ struct PcgOptions {
   PcgPreconditioner preconditioner = PcgPreconditioner::Ssor;
   /// SSOR's relaxation factor omega in [1, 2): the sweeps divide by D / omega on the cloth's
   /// rows (the fingertips' dense block is taken whole). Over-relaxing helps a free cloth on a
-  /// fine mesh (the 15842-triangle square: 8.9 -> 7.0 iterations a step at 1.4) and hurts a
-  /// pinched one (4050 triangles: 9.2 -> 10.1), so the default is 1.
+  /// fine mesh and hurts a pinched one (docs/performance.md, 'Performance of the step'), so the
+  /// default is 1.
   double ssor_omega = 1.0;
 };
 

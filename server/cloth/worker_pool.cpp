@@ -24,8 +24,9 @@ WorkerPool::~WorkerPool() {
 
 // The next unclaimed index, from the front (the caller) or the back (the helper); -1 if none is
 // left. The caller and the helper so take the same indices run after run when both are there
-// (the same rows, whose data then stays in their own core's cache: a PCG sweep's parts ran no
-// faster on two threads while the indices went to whichever thread came first).
+// (the same rows, whose data then stays in their own core's cache: with the indices to
+// whichever thread came first, two threads gained nothing; docs/performance.md, 'Performance of
+// the step').
 int WorkerPool::claim(bool from_back) {
   std::uint64_t cur = range_.load(std::memory_order_acquire);
   for (;;) {

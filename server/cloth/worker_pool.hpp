@@ -3,8 +3,8 @@
 // from the back, and returns when all are done. The helper sleeps on a futex
 // (std::atomic::wait) between runs, so an idle pool costs nothing; a run allocates nothing. If
 // the helper is slow to wake (or busy elsewhere) the caller simply takes more of the indices.
-// Within a Burst the helper spins between runs instead: a futex wake costs 5-50 us here, too
-// much for the two runs of every PCG iteration (25 and 8 us on the pinched 4050-triangle square).
+// Within a Burst the helper spins between runs instead: a futex wake costs as much as the two
+// runs of a PCG iteration or more (docs/performance.md, 'Performance of the step').
 // A spinning helper takes its core from threads of normal priority; the haptic thread runs at a
 // real-time priority (SCHED_FIFO when permitted), which preempts it.
 #pragma once
@@ -32,8 +32,8 @@ class WorkerPool {
   }
   /// While one is alive, the helper spins between runs (burning its core) instead of sleeping:
   /// for a sequence of short runs, such as a time step's assembly and solves. Nests. The
-  /// outermost one wakes the helper at once, so that the futex wake-up (5-50 us here) overlaps
-  /// whatever the caller does before its first run instead of delaying that run.
+  /// outermost one wakes the helper at once, so that the futex wake-up overlaps whatever the
+  /// caller does before its first run instead of delaying that run.
   class Burst {
    public:
     explicit Burst(WorkerPool* pool) : pool_(pool) {

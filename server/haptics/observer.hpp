@@ -4,10 +4,10 @@
 #pragma once
 
 #include "hal/device.hpp"
-#include "haptics/handoff.hpp"
-#include "haptics/refined_regions.hpp"
-#include "haptics/stats.hpp"
-#include "haptics/tactile_rendering.hpp"
+#include "haptics/sim/handoff.hpp"
+#include "haptics/refinement/refined_regions.hpp"
+#include "haptics/loop/stats.hpp"
+#include "haptics/loop/tactile_rendering.hpp"
 
 namespace hapticloth::haptics {
 

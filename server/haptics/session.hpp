@@ -14,9 +14,9 @@
 #include "cloth/integrator.hpp"
 #include "hal/handle.hpp"
 #include "hal/safety_gate.hpp"
-#include "haptics/haptic_loop.hpp"
+#include "haptics/loop/haptic_loop.hpp"
 #include "haptics/observer.hpp"
-#include "haptics/sim_worker.hpp"
+#include "haptics/sim/sim_worker.hpp"
 
 namespace hapticloth::haptics {
 

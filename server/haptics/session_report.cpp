@@ -21,9 +21,9 @@
 #include "hal/device_clock.hpp"
 #include "hal/mono_clock.hpp"
 #include "hal/platform_timer.hpp"
-#include "haptics/deadlines.hpp"
-#include "haptics/refinement_schedule.hpp"
-#include "haptics/rendering_modes.hpp"
+#include "haptics/loop/deadlines.hpp"
+#include "haptics/refinement/refinement_schedule.hpp"
+#include "haptics/modes/rendering_modes.hpp"
 
 namespace hapticloth::haptics {
 

@@ -22,9 +22,9 @@
 #include "hal/device_clock.hpp"
 #include "hal/mono_clock.hpp"
 #include "hal/platform_timer.hpp"
-#include "haptics/deadlines.hpp"
-#include "haptics/refinement_schedule.hpp"
-#include "haptics/rendering_modes.hpp"
+#include "haptics/loop/deadlines.hpp"
+#include "haptics/refinement/refinement_schedule.hpp"
+#include "haptics/modes/rendering_modes.hpp"
 
 namespace hapticloth::haptics {
 
@@ -49,7 +49,7 @@ void Session::run_realtime(double seconds) {
   r_.haptic = LoopStats{};
   // Real-time scheduling when permitted; a clean fallback (with the reason) when not.
   r_.memory_locked = sc_.try_realtime && mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
-  std::unique_ptr<devices::CpuLatencyHold> idle;  // shallow idle states: the deadline's wake-up 25 us sooner
+  std::unique_ptr<devices::CpuLatencyHold> idle;  // shallow idle states: the deadline's wake-up sooner
   if (sc_.try_realtime) idle = std::make_unique<devices::CpuLatencyHold>();
   std::string note;
   const double period = 1.0 / sc_.haptic_rate;

@@ -9,10 +9,10 @@
 // tracker integrates the fingertip's slip over the cloth instead,
 //   d(u, v)/dt = M (v_tip - v_cloth),                                   (slip in material coordinates)
 // and pulls the result towards the anchor (advanced by the same slip to the tick's time) with a
-// time constant tau, 1 s: slow enough to average out the anchor's wobble over an element (on a
-// drum with 15 mm elements stroked at 40 mm/s the anchor's speed swings between 35 and 47 mm/s
-// as the ray crosses the dimple's facets, while the slip's is 38.8), fast enough that the
-// integration's drift (M and the cloth's velocity held between steps) stays bounded. The pull
+// time constant tau, 1 s: slow enough to average out the anchor's wobble over an element (the
+// anchor's speed swings as the ray crosses the dimple's facets, while the slip's is steady:
+// docs/tactile.md, 'One fingertip, one tick'), fast enough that the integration's drift (M and
+// the cloth's velocity held between steps) stays bounded. The pull
 // is at most kMaxPull of the tick's slip, so that an anchor's jump changes the frequency the
 // weave is felt at by no more than that, rather than as a burst. A fingertip
 // that does not slip over the cloth does not move over its surface: a stroke that drags the

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "haptics/stats.hpp"
+#include "haptics/loop/stats.hpp"
 #include "hal/device.hpp"
 #include "remote/command_sink.hpp"
 #include "transport/scene_info.hpp"

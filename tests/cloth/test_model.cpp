@@ -12,11 +12,7 @@ using namespace hapticloth;
 using cloth::Vec3;
 
 TEST(Model, LumpedMassesAndPattern) {
-  cloth::GridSpec g;
-  g.width = 0.4;
-  g.height = 0.3;
-  g.nx = 8;
-  g.ny = 6;
+  const cloth::GridSpec g{.width = 0.4, .height = 0.3, .nx = 8, .ny = 6};
   const auto mesh = cloth::make_grid(g);
   const auto pins = cloth::grid_edge(mesh, "top");
   const auto m = cloth::build_model(mesh, test::denim(), pins);

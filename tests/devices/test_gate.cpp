@@ -24,6 +24,37 @@ DeviceCommand run(SafetyGate& g, double& t, int n, const DeviceCommand& in, bool
   return out;
 }
 
+// A gate that calls the state stale 5 ms after it was last fresh, and fades over 20 ms.
+SafetyGate watchdog_gate() {
+  GateConfig c;
+  c.watchdog = 0.005;
+  c.ramp_time = 0.02;
+  return SafetyGate(two_fingers(), c);
+}
+
+// n ticks of 1 ms from `out`, the state last fresh at `fresh` (NaN: fresh every tick), asking
+// `in` while the gate is fresh and `stale_in` once it is stale: the largest change of finger
+// 0's x force from a tick to the next, the first tick the gate was stale and the first that
+// sent zero force (-1: none).
+struct Fade {
+  double max_jump = 0.0;
+  int stale_at = -1, zero_at = -1;
+};
+Fade fade(SafetyGate& g, double& t, int n, double fresh, const DeviceCommand& in, const DeviceCommand& stale_in,
+          DeviceCommand& out) {
+  Fade f;
+  double prev = out.force[0].x();
+  for (int k = 1; k <= n; ++k) {
+    t += 0.001;
+    g.apply(t, std::isnan(fresh) ? t : fresh, g.stale() ? stale_in : in, out);
+    if (g.stale() && f.stale_at < 0) f.stale_at = k;
+    if (out.force[0].isZero(0.0) && f.zero_at < 0) f.zero_at = k;
+    f.max_jump = std::max(f.max_jump, std::abs(out.force[0].x() - prev));
+    prev = out.force[0].x();
+  }
+  return f;
+}
+
 }  // namespace
 
 TEST(SafetyGate, NonFiniteForceBecomesZeroAndIsCounted) {
@@ -90,10 +121,7 @@ TEST(SafetyGate, SlewRateLimitsASteps) {
 }
 
 TEST(SafetyGate, StaleAfterWatchdogRampsToZeroAndRecoversSmoothly) {
-  GateConfig c;
-  c.watchdog = 0.005;
-  c.ramp_time = 0.02;
-  SafetyGate g(two_fingers(), c);
+  SafetyGate g = watchdog_gate();
   DeviceCommand in, out;
   in.force[0] = Vec3(2, 0, 0);
   double t = 0.0;
@@ -102,34 +130,19 @@ TEST(SafetyGate, StaleAfterWatchdogRampsToZeroAndRecoversSmoothly) {
   EXPECT_FALSE(g.stale());
   EXPECT_NEAR(out.force[0].x(), 2.0, 1e-12);
   // State stops arriving at t_last: 5 ms later the gate is stale and the force ramps to zero.
-  const double t_last = t;
-  double max_jump = 0.0, prev = out.force[0].x();
-  int stale_at = -1;
-  for (int k = 1; k <= 60; ++k) {
-    t += 0.001;
-    g.apply(t, t_last, in, out);
-    if (g.stale() && stale_at < 0) stale_at = k;
-    max_jump = std::max(max_jump, std::abs(out.force[0].x() - prev));
-    prev = out.force[0].x();
-  }
+  const Fade gone = fade(g, t, 60, t, in, in, out);
   // stale once the state is older than 5 ms (the 5th or 6th tick, by the clock's rounding)
-  EXPECT_GE(stale_at, 5);
-  EXPECT_LE(stale_at, 6);
+  EXPECT_GE(gone.stale_at, 5);
+  EXPECT_LE(gone.stale_at, 6);
   EXPECT_TRUE(out.flags & kFlagStale);
   EXPECT_EQ(out.force[0], Vec3::Zero());
   EXPECT_EQ(g.counters().stale_events, 1u);
-  EXPECT_LE(max_jump, 2.0 * 0.001 / 0.02 + 1e-12);  // a ramp, not a step
+  EXPECT_LE(gone.max_jump, 2.0 * 0.001 / 0.02 + 1e-12);  // a ramp, not a step
   // Fresh state again: the force comes back as a ramp.
-  max_jump = 0.0;
-  for (int k = 1; k <= 40; ++k) {
-    t += 0.001;
-    g.apply(t, t, in, out);
-    max_jump = std::max(max_jump, std::abs(out.force[0].x() - prev));
-    prev = out.force[0].x();
-  }
+  const Fade back = fade(g, t, 40, std::nan(""), in, in, out);
   EXPECT_FALSE(g.stale());
   EXPECT_NEAR(out.force[0].x(), 2.0, 1e-12);
-  EXPECT_LE(max_jump, 2.0 * 0.001 / 0.02 + 1e-12);
+  EXPECT_LE(back.max_jump, 2.0 * 0.001 / 0.02 + 1e-12);
 }
 
 // The haptic loop renders no force for a finger whose state is stale (its place is unknown): the
@@ -137,31 +150,17 @@ TEST(SafetyGate, StaleAfterWatchdogRampsToZeroAndRecoversSmoothly) {
 // says), and the slew limit (1000 N/s) does not cut it short. It used to fade the loop's zero,
 // so 1.54 N went to 0 in 2 ms, at the slew limit.
 TEST(SafetyGate, StaleStateFadesTheLastForceOverTheRampTime) {
-  GateConfig c;
-  c.watchdog = 0.005;
-  c.ramp_time = 0.02;
-  SafetyGate g(two_fingers(), c);
+  SafetyGate g = watchdog_gate();
   DeviceCommand in, out;
   in.force[0] = Vec3(1.5, 0, 0);
   double t = 0.0;
   out = run(g, t, 100, in);
   ASSERT_NEAR(out.force[0].x(), 1.5, 1e-12);
-  const double t_last = t;
-  DeviceCommand none;  // what the loop asks once the state is stale
-  int stale_at = -1, zero_at = -1;
-  double prev = out.force[0].x(), max_jump = 0.0;
-  for (int k = 1; k <= 60; ++k) {
-    t += 0.001;
-    const bool stale_before = g.stale();
-    g.apply(t, t_last, stale_before ? none : in, out);
-    if (g.stale() && stale_at < 0) stale_at = k;
-    if (out.force[0].isZero(0.0) && zero_at < 0) zero_at = k;
-    max_jump = std::max(max_jump, std::abs(out.force[0].x() - prev));
-    prev = out.force[0].x();
-  }
-  ASSERT_GT(stale_at, 0);
-  EXPECT_NEAR(zero_at - stale_at, 19, 1);                   // 20 ms from the first stale tick
-  EXPECT_LE(max_jump, 1.5 * 0.001 / 0.02 + 1e-12);         // 75 mN a tick: a ramp
+  const DeviceCommand none;  // what the loop asks once the state is stale
+  const Fade f = fade(g, t, 60, t, in, none, out);
+  ASSERT_GT(f.stale_at, 0);
+  EXPECT_NEAR(f.zero_at - f.stale_at, 19, 1);                 // 20 ms from the first stale tick
+  EXPECT_LE(f.max_jump, 1.5 * 0.001 / 0.02 + 1e-12);         // 75 mN a tick: a ramp
   EXPECT_EQ(out.force[0], Vec3::Zero());
 }
 

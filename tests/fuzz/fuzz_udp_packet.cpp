@@ -41,16 +41,25 @@ void count(udp::ParseResult r, std::uint64_t& ok) {
 
 bool finite(const hapticloth::devices::Vec3& v) { return v.allFinite(); }
 
+// A decoder's result on the bytes, counted in `ok` or as rejected: true if Ok, and then a finger
+// count in range and, when one is expected, the expected one; else the output untouched.
+template <class Packet>
+bool accepted(udp::ParseResult r, const Packet& p, int expected, std::uint64_t& ok) {
+  count(r, ok);
+  if (r != udp::ParseResult::Ok) {
+    check(p.fingers == -7, "output untouched on failure");
+    return false;
+  }
+  check(p.fingers >= 1 && p.fingers <= kMaxFingers, "finger count in range");
+  check(expected <= 0 || p.fingers == expected, "finger count as expected");
+  return true;
+}
+
 void state_target(const std::uint8_t* data, std::size_t size, int expected, const Box& ws) {
   udp::StatePacket p;
   p.fingers = -7;  // must stay untouched unless Ok
-  const udp::ParseResult r = udp::parse_state_packet(data, size, expected, ws, p);
-  count(r, g_fuzz_state_ok);
-  if (r != udp::ParseResult::Ok) {
-    check(p.fingers == -7, "output untouched on failure");
-    return;
-  }
-  check(p.fingers == expected && expected >= 1 && expected <= kMaxFingers, "finger count");
+  if (!accepted(udp::parse_state_packet(data, size, expected, ws, p), p, expected, g_fuzz_state_ok)) return;
+  check(p.fingers == expected, "finger count");
   check(size == udp::state_packet_size(p.fingers), "size");
   check(std::isfinite(p.device_time), "finite device_time");
   for (int i = 0; i < p.fingers; ++i) {
@@ -65,14 +74,7 @@ void state_target(const std::uint8_t* data, std::size_t size, int expected, cons
 void force_target(const std::uint8_t* data, std::size_t size, int expected) {
   udp::ForcePacket p;
   p.fingers = -7;
-  const udp::ParseResult r = udp::parse_force_packet(data, size, expected, p);
-  count(r, g_fuzz_force_ok);
-  if (r != udp::ParseResult::Ok) {
-    check(p.fingers == -7, "output untouched on failure");
-    return;
-  }
-  check(p.fingers >= 1 && p.fingers <= kMaxFingers, "finger count in range");
-  check(expected <= 0 || p.fingers == expected, "finger count as expected");
+  if (!accepted(udp::parse_force_packet(data, size, expected, p), p, expected, g_fuzz_force_ok)) return;
   check(size == udp::force_packet_size(p.fingers), "size");
   check(std::isfinite(p.server_time), "finite server_time");
   for (int i = 0; i < p.fingers; ++i) check(finite(p.force[i]), "finite force");
@@ -85,14 +87,7 @@ void force_target(const std::uint8_t* data, std::size_t size, int expected) {
 void tactile_target(const std::uint8_t* data, std::size_t size, int expected) {
   udp::TactilePacket p;
   p.fingers = -7;
-  const udp::ParseResult r = udp::parse_tactile_packet(data, size, expected, p);
-  count(r, g_fuzz_tactile_ok);
-  if (r != udp::ParseResult::Ok) {
-    check(p.fingers == -7, "output untouched on failure");
-    return;
-  }
-  check(p.fingers >= 1 && p.fingers <= kMaxFingers, "tactile finger count in range");
-  check(expected <= 0 || p.fingers == expected, "tactile finger count as expected");
+  if (!accepted(udp::parse_tactile_packet(data, size, expected, p), p, expected, g_fuzz_tactile_ok)) return;
   check(p.samples >= 0 && p.samples <= hapticloth::devices::kMaxTactileSamples, "samples in range");
   check(p.rows * p.cols <= hapticloth::devices::kMaxPins, "pins in range");
   check(size == udp::tactile_packet_size(p.fingers, p.samples, p.rows * p.cols), "tactile size");

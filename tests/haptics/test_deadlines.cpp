@@ -1,7 +1,7 @@
-// server/haptics/deadlines.hpp: the loop's deadline rules on given times (1 ms period).
+// server/haptics/loop/deadlines.hpp: the loop's deadline rules on given times (1 ms period).
 #include <gtest/gtest.h>
 
-#include "haptics/deadlines.hpp"
+#include "haptics/loop/deadlines.hpp"
 
 using namespace hapticloth::haptics;
 

@@ -1,4 +1,4 @@
-// The multirate path's energy bound (server/haptics/energy_bound.cpp): a model that lags the
+// The multirate path's energy bound (server/haptics/modes/energy_bound.cpp): a model that lags the
 // hand gives it energy over closed cycles; bounded, it returns no more than it was given, over
 // every stretch of a touch, and keeps the force across the motion. End to end, the drum
 // pressed and released over closed cycles gives the user no energy with direct coupling nor on
@@ -9,7 +9,7 @@
 #include <cstdio>
 #include <string>
 
-#include "haptics/energy_bound.hpp"
+#include "haptics/modes/energy_bound.hpp"
 #include "support/touch_scenes.hpp"
 
 using namespace hapticloth;

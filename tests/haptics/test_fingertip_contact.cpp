@@ -14,7 +14,7 @@
 #include "cloth/mesh.hpp"
 #include "cloth/model.hpp"
 #include "cloth/solver.hpp"
-#include "haptics/fingertip_contact.hpp"
+#include "haptics/contact/fingertip_contact.hpp"
 #include "support/alloc_counter.hpp"
 #include "support/fixtures.hpp"
 #include "support/touch_scenes.hpp"

@@ -3,7 +3,7 @@
 
 #include <random>
 
-#include "haptics/geometry.hpp"
+#include "haptics/contact/geometry.hpp"
 #include "support/fixtures.hpp"
 
 using namespace hapticloth;

@@ -4,7 +4,7 @@
 
 #include "cloth/integrator.hpp"
 #include "cloth/model.hpp"
-#include "haptics/kernel_coupling.hpp"
+#include "haptics/modes/kernel_coupling.hpp"
 #include "support/fixtures.hpp"
 
 using namespace hapticloth;

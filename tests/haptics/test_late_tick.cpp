@@ -1,7 +1,7 @@
-// The fingertip a late tick hands the contact (server/haptics/late_tick.hpp).
+// The fingertip a late tick hands the contact (server/haptics/loop/late_tick.hpp).
 #include <gtest/gtest.h>
 
-#include "haptics/late_tick.hpp"
+#include "haptics/loop/late_tick.hpp"
 
 using namespace hapticloth;
 using haptics::Vec3;

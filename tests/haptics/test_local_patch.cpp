@@ -8,7 +8,7 @@
 #include <utility>
 
 #include "cloth/mesh.hpp"
-#include "haptics/local_patch.hpp"
+#include "haptics/modes/local_patch.hpp"
 
 using namespace hapticloth;
 using haptics::Vec3;

@@ -1,9 +1,9 @@
-// Local refinement under the fingertips (server/haptics/local_refinement.hpp,
+// Local refinement under the fingertips (server/haptics/refinement/local_refinement.hpp,
 // refined_contact.hpp): the drum press on uniform meshes too coarse for the contact patch,
 // against the exact membrane solution (membrane_reference.hpp).
 #include <cstdio>
 
-#include "haptics/refined_contact.hpp"
+#include "haptics/refinement/refined_contact.hpp"
 #include "support/touch_scenes.hpp"
 
 using namespace hapticloth;
@@ -152,11 +152,7 @@ TEST(LocalRefinement, FrictionStrokeKeepsTheCoulombRatio) {
 // each finger's own depth, the lower fingertip got 1.3 mm of compliance, the upper one lost the
 // cloth, and the centre drifted 6.2 mm.
 TEST(LocalRefinement, APinchIsASandwichNotADimple) {
-  test::PinchSpec spec;
-  spec.quads = 20;
-  spec.squeeze = 0.0005;
-  spec.friction = 0.2;
-  spec.hold = 3.0;
+  test::PinchSpec spec{.quads = 20, .squeeze = 0.0005, .friction = 0.2, .hold = 3.0};
   const test::PinchResult off = test::pinch_handkerchief(spec);
   spec.refine = haptics::Refine::On;
   const test::PinchResult on = test::pinch_handkerchief(spec);

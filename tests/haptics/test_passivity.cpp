@@ -1,4 +1,4 @@
-// The coupling's passivity observer and controller (server/haptics/passivity.hpp), driven by a
+// The coupling's passivity observer and controller (server/haptics/loop/passivity.hpp), driven by a
 // hand that follows an imposed motion: the energy the coupling gives the hand is measured from
 // the forces held over each tick, independently of the observer.
 #include <gtest/gtest.h>
@@ -6,7 +6,7 @@
 #include <cmath>
 #include <deque>
 
-#include "haptics/passivity.hpp"
+#include "haptics/loop/passivity.hpp"
 
 using namespace hapticloth;
 using haptics::Vec3;

@@ -1,4 +1,4 @@
-// The refined child mesh (server/haptics/refined_mesh.hpp): the same continuum as the global
+// The refined child mesh (server/haptics/refinement/refined_mesh.hpp): the same continuum as the global
 // triangles it refines (areas, masses, weave directions), conforming, graded toward the contact.
 #include <gtest/gtest.h>
 
@@ -6,7 +6,7 @@
 
 #include "cloth/mesh.hpp"
 #include "cloth/model.hpp"
-#include "haptics/refined_mesh.hpp"
+#include "haptics/refinement/refined_mesh.hpp"
 #include "support/fixtures.hpp"
 
 using namespace hapticloth;

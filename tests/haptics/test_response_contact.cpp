@@ -1,4 +1,4 @@
-// The multirate path's response model (server/haptics/response_contact.cpp) held to the
+// The multirate path's response model (server/haptics/modes/response_contact.cpp) held to the
 // physics of the direct coupling: at a 20 ms global step the drum press stays within 4% of
 // membrane theory, a pinch carries the handkerchief's weight within 5%, and a frictionless
 // stroke is not dragged.

@@ -10,7 +10,7 @@
 
 #include "cloth/statics.hpp"
 #include "hal/handle.hpp"
-#include "haptics/geometry.hpp"
+#include "haptics/contact/geometry.hpp"
 #include "haptics/session.hpp"
 #include "mock/mock_device.hpp"
 #include "support/alloc_counter.hpp"

@@ -2,7 +2,7 @@
 // at or above a bound (the sim steps that waited on a slowed helper thread).
 #include <gtest/gtest.h>
 
-#include "haptics/stats.hpp"
+#include "haptics/loop/stats.hpp"
 
 using hapticloth::haptics::Histogram;
 

@@ -8,7 +8,7 @@
 #include <cmath>
 
 #include "haptics/session.hpp"
-#include "haptics/tactile_trace.hpp"
+#include "haptics/loop/tactile_trace.hpp"
 #include "mock/mock_device.hpp"
 #include "support/touch_scenes.hpp"
 #include "tactile/spectrum.hpp"

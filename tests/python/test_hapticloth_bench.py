@@ -158,7 +158,7 @@ def test_late_ticks():
         assert c["max_force_jump_n"] <= 2.0 * c["on_time_max_force_jump_n"], c
         assert c["on_time_max_force_jump_n"] > 0.0, c
         # No more than without the guards, to within the passivity controller's deadband (1 uJ:
-        # deficits under it are left alone by design, haptics/passivity.hpp)
+        # deficits under it are left alone by design, haptics/loop/passivity.hpp)
         assert c["injected_energy_j"] <= c["unguarded"]["injected_energy_j"] + 1e-6, c
     stroke20 = next(c for c in j["cases"] if c["name"] == "stroke" and c["late_ms"] == 20.0)
     assert stroke20["unguarded"]["injected_energy_j"] > 5.0 * stroke20["injected_energy_j"]

@@ -116,7 +116,7 @@ def test_reads_forces_contacts_and_recovers_the_period_error(tmp_path):
 
 
 def simulated_loop(rate, n, rng, late_every=250):
-    """The haptic loop's clock (haptics/session.cpp) for n ticks: each wakes a few us after its
+    """The haptic loop's clock (haptics/session_threads.cpp) for n ticks: each wakes a few us after its
     deadline, and now and then 2.6 periods late, which skips the deadlines it passed (missed,
     not run). Returns the ticks' times, their counts 1..n and the true period errors, us."""
     period = 1.0 / rate

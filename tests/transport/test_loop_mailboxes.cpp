@@ -4,7 +4,7 @@
 #include "support/alloc_counter.hpp"
 #include "cloth/mesh.hpp"
 #include "cloth/model.hpp"
-#include "haptics/tactile_rendering.hpp"
+#include "haptics/loop/tactile_rendering.hpp"
 #include "support/fixtures.hpp"
 #include "transport/loop_mailboxes.hpp"
 

@@ -11,7 +11,7 @@
 
 #include "accuracy.hpp"
 #include "bench_common.hpp"
-#include "haptics/geometry.hpp"
+#include "haptics/contact/geometry.hpp"
 #include "mock/trajectory.hpp"
 
 namespace hapticloth::bench {

@@ -224,47 +224,43 @@ CLI::App* add_timer(CLI::App& cli, Options& o) {
   return timer;
 }
 
+// A benchmark that prints one JSON result: its subcommand with --json, and --quick and --plot
+// where it has them (quick: what --quick leaves out; empty: no --quick).
+CLI::App* json_benchmark(CLI::App& cli, Options& o, const std::string& name, const std::string& what,
+                         const std::string& quick = "", bool plot = false) {
+  auto* b = cli.add_subcommand(name, what);
+  if (!quick.empty()) b->add_flag("--quick", o.quick, quick);
+  b->add_flag("--json", o.json, "one JSON object on one line");
+  if (plot) b->add_option("--plot", o.png, "also write this PNG (and the JSON beside it)")->check(opts::writable_file());
+  return b;
+}
+
 CLI::App* add_accuracy(CLI::App& cli, Options& o) {
-  auto* acc = cli.add_subcommand(
-      "accuracy", "work-precision: error against a reference run vs CPU time per simulated "
-                  "second, over dt, alpha, solver, tolerance and mesh resolution");
-  acc->add_flag("--quick", o.quick, "a reduced sweep (about a minute)");
+  const std::string what = "work-precision: error against a reference run vs CPU time per simulated second, over "
+                           "dt, alpha, solver, tolerance and mesh resolution";
+  auto* acc = json_benchmark(cli, o, "accuracy", what, "a reduced sweep (about a minute)", true);
   acc->add_flag("--fine-cloth", o.fine_cloth, "only the multirate path on the 15842-triangle square "
                                               "against direct coupling at 1 ms (several minutes)");
   acc->add_option("--fine-scene", o.fine_scene, "--fine-cloth: another cloth (a scene file of the "
                                                 "same 0.5 m square, e.g. tools/scenes/hanging_square_4k.toml)");
-  acc->add_flag("--json", o.json, "one JSON object on one line");
-  acc->add_option("--plot", o.png, "also write this PNG (and the JSON beside it)")->check(opts::writable_file());
   return acc;
 }
 
 CLI::App* add_stability(CLI::App& cli, Options& o) {
-  auto* stab = cli.add_subcommand(
-      "stability", "stability stress map: dt x stiffness x fingertip speed x alpha, and long "
-                   "randomized fingertip trajectories");
-  stab->add_flag("--quick", o.quick, "a reduced map");
+  auto* stab = json_benchmark(cli, o, "stability",
+                              "stability stress map: dt x stiffness x fingertip speed x alpha, and long randomized "
+                              "fingertip trajectories",
+                              "a reduced map", true);
   stab->add_option("--random-steps", o.random_steps, "haptic ticks of each randomized run (default 1e5)")
       ->check(CLI::Range(1L, 100000000L));
-  stab->add_flag("--json", o.json, "one JSON object on one line");
-  stab->add_option("--plot", o.png, "also write this PNG (and the JSON beside it)")->check(opts::writable_file());
   return stab;
 }
 
-CLI::App* add_limit(CLI::App& cli, Options& o) {
-  auto* lim = cli.add_subcommand(
-      "limit", "our whole step against CHOLMOD's own factorize and solve of the same matrix, "
-               "per mesh size, with the factorization's flop count");
-  lim->add_flag("--quick", o.quick, "a few steps per size");
-  lim->add_flag("--json", o.json, "one JSON object on one line");
-  return lim;
-}
-
 CLI::App* add_fidelity(CLI::App& cli, Options& o) {
-  auto* fid = cli.add_subcommand(
-      "fidelity", "the touch against physics: drum press vs membrane theory per mesh, pinched "
-                  "handkerchief vs its weight (BENCHMARKS.md, Force fidelity)");
-  fid->add_flag("--quick", o.quick, "two meshes and one pinch");
-  fid->add_flag("--json", o.json, "one JSON object on one line");
+  auto* fid = json_benchmark(cli, o, "fidelity",
+                             "the touch against physics: drum press vs membrane theory per mesh, pinched "
+                             "handkerchief vs its weight (BENCHMARKS.md, Force fidelity)",
+                             "two meshes and one pinch");
   fid->add_option("--square-press", o.square_quads,
                   "instead: the hanging square pressed on these meshes (quads a side, the last the "
                   "reference), e.g. 22,45,178")
@@ -274,20 +270,11 @@ CLI::App* add_fidelity(CLI::App& cli, Options& o) {
 }
 
 CLI::App* add_late_ticks(CLI::App& cli, Options& o) {
-  auto* late = cli.add_subcommand(
-      "late-ticks", "press, stroke and pinch with ticks 1-20 ms late: energy given beyond "
-                    "passivity and force jumps, against the same run on time");
+  auto* late = json_benchmark(cli, o, "late-ticks",
+                              "press, stroke and pinch with ticks 1-20 ms late: energy given beyond passivity and "
+                              "force jumps, against the same run on time");
   late->add_option("--seed", o.late_seed, "seed of the late moments (default 1)");
-  late->add_flag("--json", o.json, "one JSON object on one line");
   return late;
-}
-
-CLI::App* add_tactile(CLI::App& cli, Options& o) {
-  auto* tac = cli.add_subcommand(
-      "tactile", "strokes over every shipped material's weave through the tactile channel: peak "
-                 "against v / lambda, third-octave bands against the surface model (docs/tactile.md)");
-  tac->add_flag("--json", o.json, "one JSON object on one line");
-  return tac;
 }
 
 // Listed for --help; they run in their own programs (run_elsewhere, before parsing).
@@ -300,8 +287,15 @@ void add_elsewhere(CLI::App& cli) {
 
 Commands add_commands(CLI::App& cli, Options& o) {
   Commands c{add_step(cli, o),      add_haptic(cli, o),     add_timer(cli, o),
-             add_accuracy(cli, o),  add_stability(cli, o),  add_limit(cli, o),
-             add_fidelity(cli, o),  add_late_ticks(cli, o), add_tactile(cli, o)};
+             add_accuracy(cli, o),  add_stability(cli, o),
+             json_benchmark(cli, o, "limit",
+                            "our whole step against CHOLMOD's own factorize and solve of the same matrix, per mesh "
+                            "size, with the factorization's flop count",
+                            "a few steps per size"),
+             add_fidelity(cli, o),  add_late_ticks(cli, o),
+             json_benchmark(cli, o, "tactile",
+                            "strokes over every shipped material's weave through the tactile channel: peak against "
+                            "v / lambda, third-octave bands against the surface model (docs/tactile.md)")};
   add_elsewhere(cli);
   return c;
 }

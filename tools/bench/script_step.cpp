@@ -7,7 +7,7 @@
 
 #include "accuracy.hpp"
 #include "bench_common.hpp"
-#include "haptics/sim_worker.hpp"
+#include "haptics/sim/sim_worker.hpp"
 #include "mock/trajectory.hpp"
 
 namespace hapticloth::bench {

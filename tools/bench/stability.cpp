@@ -7,7 +7,7 @@
 #include "accuracy.hpp"
 #include "app/run_summary.hpp"
 #include "bench_common.hpp"
-#include "haptics/geometry.hpp"
+#include "haptics/contact/geometry.hpp"
 #include "mock/trajectory.hpp"
 
 namespace hapticloth::bench {

@@ -231,14 +231,20 @@ def parse_size(s: str):
     return w, h
 
 
+def log_plot_parser(prog: str, doc: str) -> argparse.ArgumentParser:
+    """The arguments every plot of an LCM log takes: the log and the PNG to write."""
+    ap = argparse.ArgumentParser(prog=prog, description=doc.splitlines()[0])
+    ap.add_argument("log", help="LCM log written by hapticloth-server --lcm-log")
+    ap.add_argument("-o", "--out", required=True, help="PNG to write")
+    return ap
+
+
 def main(argv=None) -> int:
     return run_cli("hapticloth-plot", _main, argv)
 
 
 def _main(argv) -> int:
-    ap = argparse.ArgumentParser(prog="hapticloth-plot", description=__doc__.splitlines()[0])
-    ap.add_argument("log", help="LCM log written by hapticloth-server --lcm-log")
-    ap.add_argument("-o", "--out", required=True, help="PNG to write")
+    ap = log_plot_parser("hapticloth-plot", __doc__)
     ap.add_argument("--size", type=parse_size, default=(1200, 800), help="WxH in pixels (default 1200x800)")
     ap.add_argument("--title", default=None, help="figure title (default: the scene name)")
     a = ap.parse_args(argv)

@@ -18,7 +18,7 @@ import numpy as np
 
 from .errors import UserError, check_writable, run_cli
 from .lcmtypes import open_event_log, tactile_state_t
-from .plot import FINGER_COLORS, parse_size
+from .plot import FINGER_COLORS, log_plot_parser, parse_size
 
 #: STFT: samples a window (Hann), and the hop between windows
 WINDOW, HOP = 512, 64
@@ -125,9 +125,7 @@ def main(argv=None) -> int:
 
 
 def _main(argv) -> int:
-    ap = argparse.ArgumentParser(prog="hapticloth-tactile-plot", description=__doc__.splitlines()[0])
-    ap.add_argument("log", help="LCM log written by hapticloth-server --lcm-log")
-    ap.add_argument("-o", "--out", required=True, help="PNG to write")
+    ap = log_plot_parser("hapticloth-tactile-plot", __doc__)
     ap.add_argument("--finger", type=int, default=0, help="finger (default 0)")
     ap.add_argument("--size", type=parse_size, default=(1200, 700), help="WxH in pixels (default 1200x700)")
     a = ap.parse_args(argv)

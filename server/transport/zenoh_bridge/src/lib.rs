@@ -90,6 +90,18 @@ fn status(r: zenoh::Result<()>, what: &str) -> i32 {
     }
 }
 
+/// The made handle boxed for C; for an error, NULL and the message "`what`: error" for
+/// hz_last_error.
+fn boxed<T>(r: zenoh::Result<T>, what: &str) -> *mut T {
+    match r {
+        Ok(x) => Box::into_raw(Box::new(x)),
+        Err(e) => {
+            set_error(format!("{what}: {e}"));
+            std::ptr::null_mut()
+        }
+    }
+}
+
 // --- session ------------------------------------------------------------------------------
 
 pub struct HzSession {
@@ -104,13 +116,7 @@ fn open(config: zenoh::Result<Config>, what: &str) -> *mut HzSession {
             return std::ptr::null_mut();
         }
     };
-    match zenoh::open(config).wait() {
-        Ok(session) => Box::into_raw(Box::new(HzSession { session })),
-        Err(e) => {
-            set_error(format!("zenoh open: {e}"));
-            std::ptr::null_mut()
-        }
-    }
+    boxed(zenoh::open(config).wait().map(|session| HzSession { session }), "zenoh open")
 }
 
 /// Opens a session from a JSON5 configuration text. NULL on error.
@@ -273,13 +279,7 @@ pub extern "C" fn hz_declare_subscriber(
             })
         })
         .wait();
-    match r {
-        Ok(sub) => Box::into_raw(Box::new(HzSubscriber { _subscriber: sub, gate })),
-        Err(e) => {
-            set_error(format!("declare subscriber {key}: {e}"));
-            std::ptr::null_mut()
-        }
-    }
+    boxed(r.map(|sub| HzSubscriber { _subscriber: sub, gate }), &format!("declare subscriber {key}"))
 }
 
 /// Undeclares the subscriber; when it returns, no callback is running or will run.
@@ -337,13 +337,7 @@ pub extern "C" fn hz_declare_queryable(
             })
         })
         .wait();
-    match r {
-        Ok(q) => Box::into_raw(Box::new(HzQueryable { _queryable: q, gate })),
-        Err(e) => {
-            set_error(format!("declare queryable {key}: {e}"));
-            std::ptr::null_mut()
-        }
-    }
+    boxed(r.map(|q| HzQueryable { _queryable: q, gate }), &format!("declare queryable {key}"))
 }
 
 /// Replies to `query` with `len` bytes on the queryable's own key expression (which must be
