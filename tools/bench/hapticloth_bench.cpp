@@ -39,19 +39,22 @@ namespace {
 
 using namespace hapticloth;
 
-// Benchmarks that live in their own programs (built beside this one) are run through here so
-// that every benchmark is `hapticloth-bench NAME`.
-int exec_sibling(const char* program, int argc, char** argv) {
-  namespace fs = std::filesystem;
-  const fs::path self = fs::read_symlink("/proc/self/exe");
-  const std::string path = (self.parent_path() / program).string();
+// Runs `program` (its path first) with this invocation's arguments after the benchmark's name,
+// so that every benchmark is `hapticloth-bench NAME`; returns only if it cannot, saying why.
+int exec_program(std::vector<std::string> program, int argc, char** argv, const char* hint) {
+  for (int i = 2; i < argc; ++i) program.emplace_back(argv[i]);
   std::vector<char*> args;
-  args.push_back(const_cast<char*>(path.c_str()));
-  for (int i = 2; i < argc; ++i) args.push_back(argv[i]);
+  for (std::string& a : program) args.push_back(a.data());
   args.push_back(nullptr);
-  ::execv(path.c_str(), args.data());
-  std::cerr << "hapticloth-bench: cannot run " << path << " (is it built?)\n";
+  ::execv(args[0], args.data());
+  std::cerr << "hapticloth-bench: cannot run " << program[0] << " (" << hint << ")\n";
   return 2;
+}
+
+// A benchmark built as its own program beside this one.
+int exec_sibling(const char* program, int argc, char** argv) {
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe");
+  return exec_program({(self.parent_path() / program).string()}, argc, argv, "is it built?");
 }
 
 // Plots a benchmark's JSON with tools/bench/plot_bench.py (matplotlib in .venv).
@@ -74,18 +77,6 @@ int finish(const nlohmann::json& j, bool json, const std::string& png) {
   return plot(jp, png);
 }
 
-// The Python programs behind `hapticloth-bench haptic --subscribers` and `transport`: the client
-// package in .venv.
-int exec_python(std::vector<std::string> program, int argc, char** argv) {
-  for (int i = 2; i < argc; ++i) program.emplace_back(argv[i]);
-  std::vector<char*> args;
-  for (std::string& a : program) args.push_back(a.data());
-  args.push_back(nullptr);
-  ::execv(args[0], args.data());
-  std::cerr << "hapticloth-bench: cannot run " << program[0] << " (run tools/setup)\n";
-  return 2;
-}
-
 // The benchmarks that run in another program: the UDP round trip (C++, beside this one), the
 // haptic loop with subscribers or Foxglove clients in a network namespace
 // (clients/python/hapticloth/bench_subscribers.py) and the transport latency (Python).
@@ -97,8 +88,9 @@ std::optional<int> run_elsewhere(int argc, char** argv) {
     return s.rfind("--subscribers", 0) == 0 || s.rfind("--foxglove-clients", 0) == 0;
   });
   if (name == "udp") return exec_sibling("hapticloth-bench-udp", argc, argv);
-  if (name == "haptic" && with_peers) return exec_python({venv + "python", "-m", "hapticloth.bench_subscribers"}, argc, argv);
-  if (name == "transport") return exec_python({venv + "hapticloth-bench-transport"}, argc, argv);
+  if (name == "haptic" && with_peers)
+    return exec_program({venv + "python", "-m", "hapticloth.bench_subscribers"}, argc, argv, "run tools/setup");
+  if (name == "transport") return exec_program({venv + "hapticloth-bench-transport"}, argc, argv, "run tools/setup");
   return std::nullopt;
 }
 
