@@ -269,28 +269,45 @@ def test_sigint_stops_a_server_started_with_sigint_ignored(tmp_path):
     check_record(tmp_path / "record.csv", s["stop"] - offset, s["record_rows"])
 
 
-@pytest.mark.parametrize("first,second", [(signal.SIGINT, signal.SIGINT),
-                                          (signal.SIGTERM, signal.SIGTERM),
-                                          (signal.SIGINT, signal.SIGTERM)],
-                         ids=["SIGINT-SIGINT", "SIGTERM-SIGTERM", "SIGINT-SIGTERM"])
-def test_a_second_signal_exits_at_once(first, second, tmp_path):
+def second_signal_during_wind_down(first, second, tmp_path):
+    """Starts a server, sends `first` once it runs and `second` as soon as a handler took the
+    first. Returns (exit status, seconds from the second signal to the exit, stdout, stderr)."""
     with Server("--device", "mock", "--duration", "20", "--no-zenoh",
                 "--record", tmp_path / "record.csv", cwd=tmp_path,
                 lcm_log=tmp_path / "session.lcm") as srv:
         srv.wait_ready()
         time.sleep(1.0)
         srv.signal(first)
-        # The first signal taken (the stop flag set) and the server still winding down: the
-        # second arrives while the first is being handled.
         assert srv.signal_delivered(first), "the first signal not taken, or the server exited"
-        srv.signal(second)
+        if srv.p.poll() is None:  # else it ended in order before the second could be sent
+            srv.p.send_signal(second)
         t = time.monotonic()
         rc = srv.finish(seconds=30)
         took = time.monotonic() - t
-    assert rc == 128 + second, f"exit {rc}\n{srv.stdout}\n{srv.stderr[-2000:]}"
+    return rc, took, srv.stdout, srv.stderr
+
+
+@pytest.mark.parametrize("first,second", [(signal.SIGINT, signal.SIGINT),
+                                          (signal.SIGTERM, signal.SIGTERM),
+                                          (signal.SIGINT, signal.SIGTERM)],
+                         ids=["SIGINT-SIGINT", "SIGTERM-SIGTERM", "SIGINT-SIGTERM"])
+def test_a_second_signal_exits_at_once(first, second, tmp_path):
+    # The wind-down without contact takes a few ms (a tick, the files closed, the summary): a
+    # test process held up that long sends the second signal after the server has already
+    # ended in order, exit 0 with its whole summary. That is the right end for a signal that
+    # came late, not the case under test, so the attempt is repeated (at most 4 times); a
+    # handler that ignored the second signal would end every attempt that way.
+    for attempt in range(4):
+        folder = tmp_path / f"attempt{attempt}"
+        folder.mkdir()
+        rc, took, out, err = second_signal_during_wind_down(first, second, folder)
+        if rc != 0:
+            break
+        assert f"stopped          by {signal.Signals(first).name}" in out, out
+    assert rc == 128 + second, f"exit {rc} in each of 4 attempts\n{out}\n{err[-2000:]}"
     assert took < 2.0, took  # a safety limit; that it was _exit is the missing summary below
     # _exit: none of the orderly end (the summary is never printed).
-    assert "haptic ticks" not in srv.stdout and "stopped" not in srv.stdout, srv.stdout
+    assert "haptic ticks" not in out and "stopped" not in out, out
 
 
 def handler_installed(pid: int, sig: int) -> bool:
