@@ -38,23 +38,23 @@ inline __attribute__((always_inline)) bool inverse3(const double a[3][3], double
 
 // Scalar products with a 3x3 block B stored column-major with 4-lane columns, B(r, c) = B[4c + r]:
 // s += B x, s -= B x, s += B^T x (the few blocks of the fingertips' rows).
+template <bool Transposed, class T>
+double block_row_times(const T* B, int r, const double* x) {
+  constexpr int kRow = Transposed ? 4 : 1, kColumn = Transposed ? 1 : 4;  // strides of (r, c)
+  return double(B[kRow * r]) * x[0] + double(B[kRow * r + kColumn]) * x[1] +
+         double(B[kRow * r + 2 * kColumn]) * x[2];
+}
 template <class T>
 void add_block(const T* B, const double* x, double* s) {
-  s[0] += double(B[0]) * x[0] + double(B[4]) * x[1] + double(B[8]) * x[2];
-  s[1] += double(B[1]) * x[0] + double(B[5]) * x[1] + double(B[9]) * x[2];
-  s[2] += double(B[2]) * x[0] + double(B[6]) * x[1] + double(B[10]) * x[2];
+  for (int r = 0; r < 3; ++r) s[r] += block_row_times<false>(B, r, x);
 }
 template <class T>
 void sub_block(const T* B, const double* x, double* s) {
-  s[0] -= double(B[0]) * x[0] + double(B[4]) * x[1] + double(B[8]) * x[2];
-  s[1] -= double(B[1]) * x[0] + double(B[5]) * x[1] + double(B[9]) * x[2];
-  s[2] -= double(B[2]) * x[0] + double(B[6]) * x[1] + double(B[10]) * x[2];
+  for (int r = 0; r < 3; ++r) s[r] -= block_row_times<false>(B, r, x);
 }
 template <class T>
 void add_block_t(const T* B, const double* x, double* s) {
-  s[0] += double(B[0]) * x[0] + double(B[1]) * x[1] + double(B[2]) * x[2];
-  s[1] += double(B[4]) * x[0] + double(B[5]) * x[1] + double(B[6]) * x[2];
-  s[2] += double(B[8]) * x[0] + double(B[9]) * x[1] + double(B[10]) * x[2];
+  for (int r = 0; r < 3; ++r) s[r] += block_row_times<true>(B, r, x);
 }
 
 // Block-sparse-row copy of a block3 SymCsr in two parts. The hub rows (block rows far longer

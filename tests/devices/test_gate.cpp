@@ -32,6 +32,18 @@ SafetyGate watchdog_gate() {
   return SafetyGate(two_fingers(), c);
 }
 
+// A watchdog gate that has passed force (fx, 0, 0) on finger 0 for 100 fresh ticks: `in` asks
+// it, `out` is what the gate sent last, `t` the time of that tick.
+struct SteadyGate {
+  SafetyGate g = watchdog_gate();
+  DeviceCommand in, out;
+  double t = 0.0;
+  explicit SteadyGate(double fx) {
+    in.force[0] = Vec3(fx, 0, 0);
+    out = run(g, t, 100, in);
+  }
+};
+
 // n ticks of 1 ms from `out`, the state last fresh at `fresh` (NaN: fresh every tick), asking
 // `in` while the gate is fresh and `stale_in` once it is stale: the largest change of finger
 // 0's x force from a tick to the next, the first tick the gate was stale and the first that
@@ -121,12 +133,9 @@ TEST(SafetyGate, SlewRateLimitsASteps) {
 }
 
 TEST(SafetyGate, StaleAfterWatchdogRampsToZeroAndRecoversSmoothly) {
-  SafetyGate g = watchdog_gate();
-  DeviceCommand in, out;
-  in.force[0] = Vec3(2, 0, 0);
-  double t = 0.0;
   // Fresh state every tick: forces fade in over ramp_time.
-  out = run(g, t, 100, in);
+  SteadyGate steady(2.0);
+  auto& [g, in, out, t] = steady;
   EXPECT_FALSE(g.stale());
   EXPECT_NEAR(out.force[0].x(), 2.0, 1e-12);
   // State stops arriving at t_last: 5 ms later the gate is stale and the force ramps to zero.
@@ -150,11 +159,8 @@ TEST(SafetyGate, StaleAfterWatchdogRampsToZeroAndRecoversSmoothly) {
 // says), and the slew limit (1000 N/s) does not cut it short. It used to fade the loop's zero,
 // so 1.54 N went to 0 in 2 ms, at the slew limit.
 TEST(SafetyGate, StaleStateFadesTheLastForceOverTheRampTime) {
-  SafetyGate g = watchdog_gate();
-  DeviceCommand in, out;
-  in.force[0] = Vec3(1.5, 0, 0);
-  double t = 0.0;
-  out = run(g, t, 100, in);
+  SteadyGate steady(1.5);
+  auto& [g, in, out, t] = steady;
   ASSERT_NEAR(out.force[0].x(), 1.5, 1e-12);
   const DeviceCommand none;  // what the loop asks once the state is stale
   const Fade f = fade(g, t, 60, t, in, none, out);

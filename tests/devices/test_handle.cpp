@@ -61,19 +61,22 @@ TEST(DeviceLifecycle, TransitionsAndErrors) {
   EXPECT_EQ(h.read(0, s), Status::Error);  // not active: the driver is not called
   EXPECT_EQ(raw->reads, 0);
   EXPECT_FALSE(h.activate().empty());      // cannot activate before configure
-  raw->cfg_err = "no such port";
-  EXPECT_EQ(h.configure(), "no such port");
-  EXPECT_EQ(h.state(), Lifecycle::Unconfigured);
-  raw->cfg_err.clear();
-  EXPECT_EQ(h.configure(), "");
-  EXPECT_EQ(h.state(), Lifecycle::Inactive);
+  // A step the driver fails passes its error on and leaves the state; once the driver lets it,
+  // the same step moves on.
+  auto fails_then_succeeds = [&](std::string& driver_error, const char* error, auto step, Lifecycle before,
+                                 Lifecycle after) {
+    driver_error = error;
+    EXPECT_EQ(step(), error);
+    EXPECT_EQ(h.state(), before);
+    driver_error.clear();
+    EXPECT_EQ(step(), "");
+    EXPECT_EQ(h.state(), after);
+  };
+  fails_then_succeeds(raw->cfg_err, "no such port", [&] { return h.configure(); }, Lifecycle::Unconfigured,
+                      Lifecycle::Inactive);
   EXPECT_FALSE(h.configure().empty());     // twice is an error
-  raw->act_err = "rig not answering";
-  EXPECT_EQ(h.activate(), "rig not answering");
-  EXPECT_EQ(h.state(), Lifecycle::Inactive);
-  raw->act_err.clear();
-  EXPECT_EQ(h.activate(), "");
-  EXPECT_EQ(h.state(), Lifecycle::Active);
+  fails_then_succeeds(raw->act_err, "rig not answering", [&] { return h.activate(); }, Lifecycle::Inactive,
+                      Lifecycle::Active);
   EXPECT_EQ(h.read(0, s), Status::Ok);
   EXPECT_EQ(h.write(0, c), Status::Ok);
   raw->read_error = true;

@@ -35,6 +35,12 @@ cloth::Surface weave(double weft_spacing, double warp_spacing, double miu, doubl
   return s;
 }
 
+// A fingertip on the cloth with normal force `fn` (N) at material point (u, v) (m), its contact
+// patch `patch_radius` (m) across.
+TactileInput touching(double fn, double u, double v = 0.0, double patch_radius = 0.0) {
+  return {.in_contact = true, .normal_force = fn, .u = u, .v = v, .patch_radius = patch_radius};
+}
+
 // The vibration of a stroke at `speed` (m/s) along direction (du, dv) for `seconds`, pressed
 // with `fn` (N), from (0.3 mm, 0.2 mm), recorded after a lead-in of `lead` seconds (the skin's
 // first stretch to the friction limit, a transient, left out).
@@ -45,12 +51,7 @@ std::vector<double> stroke(const cloth::Surface& s, double speed, double du, dou
   std::vector<double> sig;
   const int ticks = static_cast<int>(std::lround(seconds / kTick)), skip = static_cast<int>(std::lround(lead / kTick));
   for (int i = 0; i <= ticks + skip; ++i) {
-    TactileInput in;
-    in.in_contact = true;
-    in.normal_force = fn;
-    in.u = 3e-4 + du * speed * i * kTick;
-    in.v = 2e-4 + dv * speed * i * kTick;
-    in.patch_radius = 0.004;
+    const TactileInput in = touching(fn, 3e-4 + du * speed * i * kTick, 2e-4 + dv * speed * i * kTick, 0.004);
     ch.tick(in, out);
     if (i > skip) sig.insert(sig.end(), out.vibration.begin(), out.vibration.begin() + out.samples);
   }
@@ -164,12 +165,7 @@ TEST(TactileChannel, PinFrameIsTheSurfaceUnderThePins) {
   const cloth::Surface s = weave(0.7e-3, 1.1e-3, 0.0, 0.0);  // no friction: the skin is at the fingertip
   TactileChannel ch(s, TactileParams{}, kTick);
   TactileOutput out;
-  TactileInput in;
-  in.in_contact = true;
-  in.normal_force = 0.3;
-  in.u = 0.0123;
-  in.v = -0.0042;
-  in.patch_radius = 0.0045;
+  const TactileInput in = touching(0.3, 0.0123, -0.0042, 0.0045);
   ch.tick(in, out);
   ASSERT_EQ(out.rows, 6);
   ASSERT_EQ(out.cols, 4);
@@ -202,10 +198,7 @@ TEST(TactileChannel, FrictionVariationGivesStickSlipOncePerYarn) {
     int events = 0;
     double prev_ft = -1.0;
     for (int i = 0; i <= static_cast<int>(seconds / kTick); ++i) {
-      TactileInput in;
-      in.in_contact = true;
-      in.normal_force = fn;
-      in.u = speed * i * kTick;
+      const TactileInput in = touching(fn, speed * i * kTick);
       ch.tick(in, out);
       // A slip event: the spring's force drops by half the friction's mean deviation in a tick.
       // Sliding smoothly it follows mu down at most mmd f_n (pi^2 / lambda) v dt, 0.1 mmd f_n.
@@ -229,10 +222,7 @@ TEST(TactileChannel, TickDoesNotAllocate) {
   const cloth::Surface s = weave(0.5e-3, 0.8e-3, 0.3, 0.05);
   TactileChannel ch(s, TactileParams{}, kTick);
   TactileOutput out;
-  TactileInput in;
-  in.in_contact = true;
-  in.normal_force = 0.5;
-  in.patch_radius = 0.004;
+  TactileInput in = touching(0.5, 0.0, 0.0, 0.004);
   test::AllocationGuard guard;
   for (int i = 0; i < 100; ++i) {
     in.u = i * 5e-5;

@@ -15,6 +15,7 @@ use std::sync::{Arc, RwLock};
 use zenoh::matching::MatchingListener;
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::query::{Query, Queryable};
+use zenoh::sample::Sample;
 use zenoh::{Config, Session, Wait};
 
 mod foxglove_sink;
@@ -250,6 +251,36 @@ impl Gate {
     }
 }
 
+/// The C callback `f` (called with the caller's context) as zenoh's callback, behind a new gate:
+/// returns the gate, to close before undeclaring, and the callback.
+fn behind_gate<A>(
+    ctx: *mut c_void,
+    f: impl Fn(*mut c_void, A) + Send + Sync + 'static,
+) -> (Gate, impl Fn(A) + Send + Sync + 'static) {
+    let ctx = Ctx(ctx);
+    let gate = Gate::new();
+    let g = gate.clone();
+    (gate, move |a| {
+        let c = &ctx; // the whole Ctx (Send), not its raw pointer field
+        g.run(|| f(c.0, a))
+    })
+}
+
+/// The session and key expression of a declaration, or None with the error set.
+fn declare_args<'a>(s: *const HzSession, key: *const c_char) -> Option<(&'a Session, &'a str)> {
+    Some((session_arg(s)?, str_arg(key, "key expression")?))
+}
+
+/// Closes the handle's gate (no C callback runs after it), then undeclares with `undeclare`.
+fn undeclare_gated<T>(handle: *mut T, gate: impl Fn(&T) -> &Gate, undeclare: impl FnOnce(T)) {
+    if !handle.is_null() {
+        // SAFETY: from one of the hz_declare_* functions, not used again.
+        let h = unsafe { Box::from_raw(handle) };
+        gate(&h).close();
+        undeclare(*h);
+    }
+}
+
 pub struct HzSubscriber {
     _subscriber: Subscriber<()>,
     gate: Gate,
@@ -263,34 +294,22 @@ pub extern "C" fn hz_declare_subscriber(
     cb: HzSampleCallback,
     ctx: *mut c_void,
 ) -> *mut HzSubscriber {
-    let Some(session) = session_arg(s) else { return std::ptr::null_mut() };
-    let Some(key) = str_arg(key, "key expression") else { return std::ptr::null_mut() };
-    let ctx = Ctx(ctx);
-    let gate = Gate::new();
-    let g = gate.clone();
-    let r = session
-        .declare_subscriber(key.to_owned())
-        .callback(move |sample| {
-            g.run(|| {
-                let payload = sample.payload().to_bytes();
-                let k = sample.key_expr().as_str();
-                let c = &ctx;
-                cb(payload.as_ptr(), payload.len(), k.as_ptr() as *const c_char, k.len(), c.0);
-            })
-        })
-        .wait();
+    let Some((session, key)) = declare_args(s, key) else { return std::ptr::null_mut() };
+    let (gate, callback) = behind_gate(ctx, move |c, sample: Sample| {
+        let payload = sample.payload().to_bytes();
+        let k = sample.key_expr().as_str();
+        cb(payload.as_ptr(), payload.len(), k.as_ptr() as *const c_char, k.len(), c);
+    });
+    let r = session.declare_subscriber(key.to_owned()).callback(callback).wait();
     boxed(r.map(|sub| HzSubscriber { _subscriber: sub, gate }), &format!("declare subscriber {key}"))
 }
 
 /// Undeclares the subscriber; when it returns, no callback is running or will run.
 #[no_mangle]
 pub extern "C" fn hz_undeclare_subscriber(sub: *mut HzSubscriber) {
-    if !sub.is_null() {
-        // SAFETY: from hz_declare_subscriber, not used again.
-        let sub = unsafe { Box::from_raw(sub) };
-        sub.gate.close();
-        let _ = sub._subscriber.undeclare().wait();
-    }
+    undeclare_gated(sub, |h| &h.gate, |h| {
+        let _ = h._subscriber.undeclare().wait();
+    });
 }
 
 // --- queryable ----------------------------------------------------------------------------
@@ -320,23 +339,14 @@ pub extern "C" fn hz_declare_queryable(
     cb: HzQueryCallback,
     ctx: *mut c_void,
 ) -> *mut HzQueryable {
-    let Some(session) = session_arg(s) else { return std::ptr::null_mut() };
-    let Some(key) = str_arg(key, "key expression") else { return std::ptr::null_mut() };
-    let ctx = Ctx(ctx);
+    let Some((session, key)) = declare_args(s, key) else { return std::ptr::null_mut() };
     let reply_key = key.to_owned();
-    let gate = Gate::new();
-    let g = gate.clone();
-    let r = session
-        .declare_queryable(key.to_owned())
-        .callback(move |query| {
-            g.run(|| {
-                let q = HzQuery { query: &query, reply_key: &reply_key };
-                let k = query.key_expr().as_str();
-                let c = &ctx;
-                cb(&q, k.as_ptr() as *const c_char, k.len(), c.0);
-            })
-        })
-        .wait();
+    let (gate, callback) = behind_gate(ctx, move |c, query: Query| {
+        let q = HzQuery { query: &query, reply_key: &reply_key };
+        let k = query.key_expr().as_str();
+        cb(&q, k.as_ptr() as *const c_char, k.len(), c);
+    });
+    let r = session.declare_queryable(key.to_owned()).callback(callback).wait();
     boxed(r.map(|q| HzQueryable { _queryable: q, gate }), &format!("declare queryable {key}"))
 }
 
@@ -355,12 +365,9 @@ pub extern "C" fn hz_query_reply(query: *const HzQuery, data: *const u8, len: us
 
 #[no_mangle]
 pub extern "C" fn hz_undeclare_queryable(q: *mut HzQueryable) {
-    if !q.is_null() {
-        // SAFETY: from hz_declare_queryable, not used again.
-        let q = unsafe { Box::from_raw(q) };
-        q.gate.close();
-        let _ = q._queryable.undeclare().wait();
-    }
+    undeclare_gated(q, |h| &h.gate, |h| {
+        let _ = h._queryable.undeclare().wait();
+    });
 }
 
 // --- get ----------------------------------------------------------------------------------
