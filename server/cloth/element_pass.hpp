@@ -17,6 +17,8 @@
 namespace hapticloth::cloth {
 
 class KeptMatrix;
+struct WholeMatrix;
+struct KeptChanges;
 
 struct StepFactors {
   double h;       ///< the (sub)step, s
@@ -66,13 +68,16 @@ struct PassTarget {
 class ElementPass {
  public:
   virtual ~ElementPass() = default;
-  /// Part `part`'s terms into `out`. `keep`: the matrix in hand is kept, and only the blocks of
-  /// the elements whose factors moved beyond kept's tolerance are added, as the blocks of the
-  /// factors' change (their rows marked in `kept` for `part`); else every block is added and the
-  /// factors kept. The right-hand side is added whole either way. Returns the part's elastic
-  /// energy; `formed` counts the elements whose blocks were added.
-  virtual double run(int part, const PassInput& in, const PassTarget& out, KeptMatrix& kept,
-                     bool keep, int& formed) = 0;
+  /// Part `part`'s terms into `out`, every block added (and the factors kept, if `kept` is
+  /// enabled). Returns the part's elastic energy; `formed` counts the elements whose blocks
+  /// were added.
+  virtual double run(WholeMatrix, int part, const PassInput& in, const PassTarget& out, KeptMatrix& kept,
+                     int& formed) = 0;
+  /// The same into the matrix in hand: only the blocks of the elements whose factors moved
+  /// beyond kept's tolerance are added, as the blocks of the factors' change, their rows marked
+  /// in `kept` for `part`. The right-hand side is added whole either way.
+  virtual double run(KeptChanges, int part, const PassInput& in, const PassTarget& out, KeptMatrix& kept,
+                     int& formed) = 0;
 };
 
 /// One instruction level's entry points.

@@ -73,34 +73,53 @@ class LanePass final : public ElementPass {
     }
   }
 
-  double run(int part, const PassInput& in, const PassTarget& out, KeptMatrix& kept, bool keep,
+  double run(WholeMatrix form, int part, const PassInput& in, const PassTarget& out, KeptMatrix& kept,
              int& formed) override {
+    return run_as(form, part, in, out, kept, formed);
+  }
+  double run(KeptChanges form, int part, const PassInput& in, const PassTarget& out, KeptMatrix& kept,
+             int& formed) override {
+    return run_as(form, part, in, out, kept, formed);
+  }
+
+ private:
+  template <class Form>
+  double run_as(Form form, int part, const PassInput& in, const PassTarget& out, KeptMatrix& kept, int& formed) {
     GroupTerms terms;  // 5 kB and 7 kB with AVX-512, on the stack of the thread that runs the part
     LaneBlocks blocks;
     const std::vector<ElementGroup>& groups = groups_[part];
     std::vector<KeptFactors>& factors = kept_[part];
-    const bool keeping = kept.enabled();
     double energy = 0.0;
     formed = 0;
     for (std::size_t i = 0; i < groups.size(); ++i) {
       const ElementGroup& g = groups[i];
       element_terms(g, in, terms);
-      unsigned lanes = (1u << g.count) - 1;
-      if (keep)
-        lanes = take_changes(kept.tolerance(), g.count, terms, factors[i]);
-      else if (keeping)
-        keep_factors(terms, factors[i]);
+      const unsigned lanes = lanes_to_form(form, kept, g, terms, factors[i]);
       if (lanes) {
         system_blocks(g, terms.factor, terms.block);
         lane_blocks(terms, blocks);
       }
-      energy += scatter(g, terms, blocks, lanes, out, keep ? &kept : nullptr, part);
+      energy += scatter(g, terms, blocks, lanes, out, rows_to_mark(form, kept), part);
       formed += __builtin_popcount(lanes);
     }
     return energy;
   }
 
- private:
+  // The lanes whose blocks go in (bit l: lane l): all of a matrix formed whole (their factors
+  // kept for the next steps' changes when a kept matrix is on); of a kept one, those whose
+  // factors moved, their terms turned into the change.
+  static unsigned lanes_to_form(WholeMatrix, const KeptMatrix& kept, const ElementGroup& g, GroupTerms& terms,
+                                KeptFactors& factors) {
+    if (kept.enabled()) keep_factors(terms, factors);
+    return (1u << g.count) - 1;
+  }
+  static unsigned lanes_to_form(KeptChanges, const KeptMatrix& kept, const ElementGroup& g, GroupTerms& terms,
+                                KeptFactors& factors) {
+    return take_changes(kept.tolerance(), g.count, terms, factors);
+  }
+  static KeptMatrix* rows_to_mark(WholeMatrix, KeptMatrix&) { return nullptr; }
+  static KeptMatrix* rows_to_mark(KeptChanges, KeptMatrix& kept) { return &kept; }
+
   // A group's terms at its elements' free vertices (pinned ones have no row): the right-hand
   // sides, the blocks (k, l) for k <= l, and (l, k) as their transposes, row by row (the same sums
   // in the same order as entry by entry); the blocks of the lanes in `lanes` only (bit l: lane l),

@@ -254,12 +254,18 @@ class Integrator {
   struct ClothEnergy {
     double elastic = 0.0, kinetic = 0.0, gravity = 0.0;  // J
   };
-  ClothEnergy assemble_cloth(const ClothState& s, double h, bool keep, bool spd);
-  ClothEnergy vertex_terms(const ClothState& s, double h, int part, bool keep);
+  // Form: WholeMatrix or KeptChanges (kept_matrix.hpp), how this assembly forms the matrix.
+  template <class Form>
+  bool assemble_as(const ClothState& s, double h, JacobianMode mode);
+  template <class Form>
+  ClothEnergy assemble_cloth(const ClothState& s, double h, bool spd);
+  template <class Form>
+  ClothEnergy vertex_terms(const ClothState& s, double h, int part);
+  template <class Form>
+  void clear_rows(const std::vector<std::pair<int, int>>& spans);
   void take_out_springs(double h);
   void mark_proxy_rows();
   void plan_clearing(const ElementPartition& partition);
-  void clear_rows(const std::vector<std::pair<int, int>>& spans);
   bool state_finite(const ClothState& s) const;
 
   const ClothModel& model_;

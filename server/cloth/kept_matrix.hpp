@@ -13,6 +13,7 @@
 // W-method, Hairer and Wanner, Solving ODEs II, IV.7).
 #pragma once
 
+#include <cstring>
 #include <vector>
 
 #include "cloth/element.hpp"
@@ -62,6 +63,30 @@ class KeptMatrix {
   double h_ = 0.0, alpha_ = 0.0;
   JacobianMode mode_ = JacobianMode::Spd;
   int since_full_ = 0;
+};
+
+/// The two ways an assembly forms eq. 9's matrix, as the tags it is run with (KeptMatrix::keeps
+/// chooses per step). WholeMatrix: the values cleared, then every term added.
+struct WholeMatrix {
+  /// Values [begin, end) cleared before the terms go in.
+  static void clear(double* values, int begin, int end) {
+    std::memset(values + begin, 0, sizeof(double) * static_cast<std::size_t>(end - begin));
+  }
+  /// A term that is the same every step (the lumped mass, the air damping): added.
+  static void add_steady(double& entry, double value) { entry += value; }
+  /// Whether the matrix holds an external stiffness from before (it holds nothing).
+  static bool holds_stiffness(bool /*held*/) { return false; }
+  /// Rows whose terms changed need no mark: the solver loads the whole matrix.
+  static void mark(KeptMatrix&, int /*part*/, int /*row*/) {}
+};
+
+/// KeptChanges: the matrix in hand kept; only the terms that moved are added, as their change,
+/// and their rows marked for the solver to reload.
+struct KeptChanges {
+  static void clear(double*, int, int) {}
+  static void add_steady(double&, double) {}
+  static bool holds_stiffness(bool held) { return held; }
+  static void mark(KeptMatrix& kept, int part, int row) { kept.mark(part, row); }
 };
 
 }  // namespace hapticloth::cloth

@@ -192,15 +192,16 @@ struct SheetPass {
     pass = k.make_pass(model.elements, parts);
     for (auto& x : s.x) x *= 1.05;  // every fibre in tension
   }
-  // Both parts; the elements whose blocks were formed.
-  int run(bool keep) {
+  // Both parts, the matrix formed as Form says; the elements whose blocks were formed.
+  template <class Form>
+  int run(Form form) {
     const cloth::PassInput in{&mat, s.x.data(), s.v.data(), {0.002, 1.0}, false, true};
     const cloth::PassTarget out{A.data(), rhs.data(), model.free_index.data(), sys.block_offset.data(),
                                 sys.row_stride.data()};
     int formed = 0;
     for (int part = 0; part < 2; ++part) {
       int n = 0;
-      pass->run(part, in, out, kept, keep, n);
+      pass->run(form, part, in, out, kept, n);
       formed += n;
     }
     return formed;
@@ -220,12 +221,12 @@ struct SheetPass {
 // matrix formed whole at the new state, to the tolerance; a non-finite factor always moves.
 TEST_P(ElementPass, KeptPassFormsOnlyTheElementsThatMoved) {
   SheetPass p(kernels());
-  EXPECT_EQ(p.run(false), p.model.num_triangles());
+  EXPECT_EQ(p.run(cloth::WholeMatrix{}), p.model.num_triangles());
   const int v = p.model.free_vertices[10];
   p.s.x[v] += Vec3(0.0, 0.0, 1e-7);  // far below the tolerance
-  EXPECT_EQ(p.run(true), 0);
+  EXPECT_EQ(p.run(cloth::KeptChanges{}), 0);
   p.s.x[v] += Vec3(0.0, 0.0, 3e-3);  // a 3 mm dent: its elements' factors move by percents
-  EXPECT_EQ(p.run(true), p.around(v));
+  EXPECT_EQ(p.run(cloth::KeptChanges{}), p.around(v));
   // The rows marked changed are the free corners of those elements.
   std::vector<int> rows = p.kept.take_changed_rows();
   std::sort(rows.begin(), rows.end());
@@ -241,7 +242,7 @@ TEST_P(ElementPass, KeptPassFormsOnlyTheElementsThatMoved) {
   // the matrix formed whole at the new state, to rounding.
   SheetPass whole(kernels());
   whole.s = p.s;
-  whole.run(false);
+  whole.run(cloth::WholeMatrix{});
   double amax = 0.0, diff = 0.0;
   for (std::size_t i = 0; i < p.A.size(); ++i) {
     amax = std::max(amax, std::abs(whole.A[i]));
@@ -250,7 +251,7 @@ TEST_P(ElementPass, KeptPassFormsOnlyTheElementsThatMoved) {
   ASSERT_GT(amax, 0.0);
   EXPECT_LE(diff, 1e-12 * amax);
   p.s.x[v] = Vec3(NAN, 0.0, 0.0);
-  EXPECT_EQ(p.run(true), p.around(v));
+  EXPECT_EQ(p.run(cloth::KeptChanges{}), p.around(v));
 }
 
 INSTANTIATE_TEST_SUITE_P(Levels, ElementPass,

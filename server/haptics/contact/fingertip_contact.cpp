@@ -54,11 +54,7 @@ FingertipContact::FingertipContact(const cloth::ClothModel& model,
       p_(p),
       integ_(integ),
       bp_(model.rest_positions, tris),
-      // Direct coupling's short steps (cloth::ContactSteps) defer their late slide-to-stick
-      // switches to the next step (revise()), their pressure law stiffens with depth (linearize_pressure),
-      // their contacts are one-sided for the integrator's line search (make_spring) and come back
-      // from a release with their state (add_contacts).
-      short_steps_(integ.config().contact_steps == cloth::ContactSteps::Short) {
+      steps_(contact_step_rules(integ.config().contact_steps)) {
   if (!devices::valid_finger_count(fingers_))
     throw std::invalid_argument("fingertip contact: a device has " + std::to_string(devices::kMinFingers) +
                                 " to " + std::to_string(devices::kMaxFingers) + " fingers, not " +
@@ -131,23 +127,19 @@ void FingertipContact::begin_step(const cloth::ClothState& s,
     P.damping = p_.coupling_damping;
     device_target_[f] = P.target;
     refined_axis_[f].setZero();
-    if (short_steps_ && refined_c_[f] > 0.0) couple_through_fingertip(f, P);
+    if (steps_.couples_through_fingertip() && refined_c_[f] > 0.0) couple_through_fingertip(f, P);
     find_samples(f, s, expected_proxy(f, first));
   }
   rebuild_springs();
 }
 
-// Where proxy f is expected at the end of the step (after set_coupling_target). In a short step
-// (direct coupling, 1 ms) it moves a few hundredths of a millimetre: as in the last step. A long
-// step of the multirate path moves it as its target moved since the last step (the massless
-// proxy follows the device; exact for a steady stroke): its own last displacement is no guide
-// there, as a contact that lets go moves it millimetres in one long step, and a prediction that
-// far off puts the contacts' normals (place) on the wrong side.
+// Where proxy f is expected at the end of the step (after set_coupling_target): as its last
+// step moved it, or as its target moved since (ContactStepRules::expected_proxy).
 Vec3 FingertipContact::expected_proxy(int f, bool first) {
   const cloth::ProxyNode& P = integ_.proxies()[f];
   const Vec3 moved = first ? Vec3::Zero() : Vec3(P.target - last_target_[f]);
   last_target_[f] = P.target;
-  return P.x + (short_steps_ ? last_disp_[f] : moved);
+  return steps_.expected_proxy(P.x, last_disp_[f], moved);
 }
 
 // The refined compliance moves towards the refinement's latest at most as fast as it moves the
@@ -280,7 +272,7 @@ void FingertipContact::end_step(const cloth::ClothState& s) {
     // isotropic on the multirate path, whose proxies have the spring 1 / (1/k + c)). Reported
     // there, the coupling's spring k (proxy - target) is what the passivity controller's energy
     // balance needs.
-    const Vec3 series = short_steps_ ? Vec3(refined_axis_[f] * refined_axis_[f].dot(r.force)) : r.force;
+    const Vec3 series = steps_.series_force(refined_axis_[f], r.force);
     r.proxy = P.x - refined_c_[f] * series;
     tip_[f] = r.proxy;
     nearest_surface(f, s, P.x, r);

@@ -27,6 +27,7 @@
 
 #include "cloth/integrator.hpp"
 #include "haptics/contact/broad_phase.hpp"
+#include "haptics/contact/contact_steps.hpp"
 #include "haptics/sim/handoff.hpp"
 
 namespace hapticloth::haptics {
@@ -148,7 +149,7 @@ class FingertipContact final : public cloth::StepContacts {
   ContactParams p_;
   cloth::Integrator& integ_;
   BroadPhase bp_;
-  bool short_steps_;  // direct coupling's steps, one per haptic tick (cloth::ContactSteps)
+  const ContactStepRules& steps_;  // what the step's length changes (contact_steps.hpp)
   double spacing_;
   std::vector<int> sub_, first_;  // per triangle: subdivisions, first sample id
   std::array<Finger, kMaxFingers> fing_;

@@ -125,7 +125,7 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
       q.id = first_[t] + k;
       q.tri = t;
       q.w = w;
-      if (!place(q, x, p, short_steps_ ? p : proxy_at)) return;
+      if (!place(q, x, p, steps_.placing_proxy(p, proxy_at))) return;
       while (j < F.prev.size() && F.prev[j].id < q.id) ++j;
       if (j < F.prev.size() && F.prev[j].id == q.id) {  // a contact that persists: its friction state
         q.anchor = F.prev[j].anchor;
@@ -238,11 +238,10 @@ bool FingertipContact::add_contacts(int f, const std::vector<Vec3>& x_new, const
       for (int i = 0; i < 3; ++i) q.b[i] = b[i];
       const Vec3 x1 = point(x_new, t, q.b);
       if (p_.radius - (x1 - p1).norm() <= kAddDepth) return;
-      // Released earlier in this short step: back with the friction state it had. Fresh, it
-      // would stick to where it was at the start, slide, be released and come back sticking
-      // again: the cycle a fast stroke's rim samples ran to the revision cap.
+      // Released earlier in this step: back with the friction state it had, where the step's
+      // rules say so (ContactStepRules::rejoins_with_state).
       const auto back = std::find_if(F.gone.begin(), F.gone.end(), [&](const Sample& g) { return g.id == id; });
-      if (back != F.gone.end() && short_steps_) {
+      if (back != F.gone.end() && steps_.rejoins_with_state()) {
         F.now.push_back(*back);
         F.gone.erase(back);
         rejoin(F.now.back(), x1 - point(s0_->x, t, q.b) - (p1 - p0));
@@ -251,7 +250,7 @@ bool FingertipContact::add_contacts(int f, const std::vector<Vec3>& x_new, const
       q.id = id;
       q.tri = t;
       q.w = w;
-      if (!place(q, point(s0_->x, t, q.b), p0, short_steps_ ? p0 : p1)) return;
+      if (!place(q, point(s0_->x, t, q.b), p0, steps_.placing_proxy(p0, p1))) return;
       decide_friction(f, q);
       F.now.push_back(q);
     });

@@ -32,7 +32,7 @@ constexpr int kFreeRevisions = 12;
 
 void FingertipContact::linearize_pressure(Sample& q) const {
   const double kw = p_.pressure_stiffness * q.w, d = std::max(q.depth0, 0.0);
-  q.kn = short_steps_ ? kw * (1.0 + d / p_.stiffening_depth) : kw;
+  q.kn = steps_.pressure_stiffness(kw, d, p_.stiffening_depth);
   q.f0 = q.kn * q.depth0;
 }
 
@@ -49,7 +49,7 @@ void FingertipContact::make_spring(int f, const Sample& q, cloth::PointSpring& s
   for (int i = 0; i < 3; ++i) sp.b[i] = q.b[i];
   sp.proxy = f;
   sp.key = q.id;
-  sp.kn = short_steps_ ? q.kn : 0.0;
+  sp.kn = steps_.line_search_stiffness(q.kn);
   sp.depth0 = q.depth0;
   sp.n = q.n;
   sp.f = q.f0 * q.n;
@@ -116,15 +116,10 @@ double FingertipContact::revise_friction(Sample& q, const Vec3& p0, const Vec3& 
   if (std::abs(sn - lim) <= tol) return 0.0;
   if (sn > 0.0) {
     q.slide *= lim / sn;
-  } else if (short_steps_) {
+  } else if (steps_.slides_against_slip()) {
     // A slide scaled to nothing while its normal force was (a contact whose end state pulled
     // at an earlier re-solve) has no direction left: kinetic friction opposes the point's slip
-    // over the sphere. Kept at zero, the contact would slide frictionless for the rest of the
-    // step however hard it pressed again, and the stroke's friction would fall short of
-    // Coulomb's on such ticks (docs/contact.md, 'The model'). The multirate path's long steps
-    // keep it at zero: the global step is only what the local model follows there, and its
-    // response model, following the steps this rule gives, predicts the finger leaving the
-    // cloth mid-stroke (docs/contact.md, 'Friction in the multirate path's steps').
+    // over the sphere, where the step's rules say so (ContactStepRules::slides_against_slip).
     const double sl = slip.norm();
     if (sl <= 0.0) return 0.0;
     q.slide = slip * (-lim / sl);
@@ -215,7 +210,7 @@ bool FingertipContact::revise(const std::vector<Vec3>& x_new,
   // end there.
   if (same_candidate) revisions_ = std::max(revisions_, kFreeRevisions);
   const bool settle = revisions_ < kFreeRevisions;
-  const bool defer = !settle && short_steps_;
+  const bool defer = !settle && steps_.defers_late_sticking();
   ++revisions_;
   bool changed = false;
   for (int f = 0; f < fingers_; ++f) {
