@@ -290,3 +290,38 @@ TEST(FingertipContact, TheSameCandidateEndsTheFreeRevisions) {
   EXPECT_FALSE(changed);
   EXPECT_EQ(kept, touching);
 }
+
+// With a refined compliance c in series (local refinement, direct coupling), the coupling is
+// the chain through the fingertip: k1 = k + b/h across the contact's axis, 1 / (1/k1 + c) along
+// it. A device far across the axis (a fast finger, or a hand past the limit) must not make that
+// chain ask the cloth for more than the device renders: the target is pulled back until
+// |K (target - proxy)| is the limit. (It was pulled back with the soft isotropic spring alone,
+// and the stiffer k1 across then asked 180 N of an 8 N device; a random two-finger stroke's
+// step blew up on it.)
+TEST(FingertipContact, ChainThroughTheFingertipAsksNoMoreThanTheLimit) {
+  DrumAndTwoTips rig(8.0);
+  cloth::Integrator& integ = rig.integ;
+  haptics::FingertipContact& tips = rig.tips;
+  cloth::ClothState s = cloth::rest_state(rig.m);
+  const double dt = rig.cfg.dt;
+  tips.set_refined_compliance(0, 0.005);
+  std::array<haptics::FingerTarget, haptics::kMaxFingers> in{};
+  double largest_ask = 0.0;
+  bool chained = false;
+  for (int step = 0; step < 120; ++step) {
+    // 2 mm into the drum's centre by step 60, then the device 0.1 m across, then back.
+    const double depth = std::min(step, 60) * 2e-3 / 60;
+    const haptics::Vec3 across = step >= 80 && step < 100 ? haptics::Vec3(0.1, 0.0, 0.0) : haptics::Vec3::Zero();
+    in[0] = {true, haptics::Vec3(0.0, 0.0, rig.p.radius - depth) + across, haptics::Vec3::Zero()};
+    tips.begin_step(s, in, dt);
+    const cloth::ProxyNode& P = integ.proxies()[0];
+    chained = chained || P.axis_stiffness > 0.0;
+    largest_ask = std::max(largest_ask, (P.stiffness_matrix() * (P.target - P.x)).norm());
+    ASSERT_EQ(integ.step(s), cloth::StepOutcome::Accepted) << "step " << step;
+    tips.end_step(s);
+  }
+  std::printf("largest force the coupling asked: %.3f N (limit 8 N)\n", largest_ask);
+  EXPECT_TRUE(chained);                       // the chain through the fingertip was on
+  EXPECT_GT(largest_ask, 7.9);                // the device across reached the limit...
+  EXPECT_LE(largest_ask, 8.0 * (1.0 + 1e-12));  // ...and no further
+}

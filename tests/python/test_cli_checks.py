@@ -51,6 +51,8 @@ def base_args(program: str, option: str, tmp: Path, log: Path | None) -> list[st
         return ["--json"] + ([] if option == "--duration" else ["--duration", "0.5"])
     if program in ("hapticloth-bench", "hapticloth-bench udp"):
         return []
+    if program in ("hapticloth-bench accuracy", "hapticloth-bench stability"):
+        return ["--quick", "--json"]
     if program == "hapticloth-bench timer":
         return ["--json"] + ([] if option == "--ticks" else ["--ticks", "10"])
     if program == "hapticloth-kes":
@@ -110,6 +112,8 @@ BAD = [
     case("hapticloth-bench udp", "--duration", "nan"),
     case("hapticloth-bench timer", "--ticks", "0"),
     case("hapticloth-bench timer", "--priority", "100"),
+    case("hapticloth-bench accuracy", "--refine", "sometimes"),
+    case("hapticloth-bench stability", "--refine", "sometimes"),
     case("hapticloth-bench", UNKNOWN),
     # hapticloth-kes
     case("hapticloth-kes", "--max-strain", "-1"),

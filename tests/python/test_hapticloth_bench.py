@@ -100,9 +100,17 @@ def test_press_force(accuracy):
 
 
 def test_pinch_force_at_the_haptic_rate(accuracy):
+    # The squeeze: each fingertip's device position 2 mm inside the cloth, its proxy held at the
+    # cloth, so each 800 N/m coupling asks 1.6 N, less the sandwich's shift, with the lift's
+    # friction beside it. (The refined compliance of a finger's first sub-millinewton touch once
+    # held the squeeze at 0.17-0.8 N for a second: the 0.25 ms reference's largest force 1.0 N,
+    # the 1 ms run 71% off the 0.05 ms one.)
+    ref = accuracy["scenes"]["pinch"]["reference_max_force_n"]
+    assert 1.3 < ref < 1.8, ref
     direct = find(runs(accuracy, "pinch", "dt-alpha"), dt_ms=1.0, alpha=1.0)
-    assert direct["force_err_rel"] < 0.15
-    assert accuracy["scenes"]["pinch"]["reference_max_force_n"] > 1.0
+    assert direct["force_err_rel"] < 0.05, direct
+    for r in runs(accuracy, "pinch", "local-response"):
+        assert r["force_err_rel"] < 0.1, r
 
 
 def test_pareto_front(accuracy):
@@ -203,6 +211,24 @@ def test_haptic_subscribers():
         for run in (p["off"], p["on"]):
             assert run["ticks"] >= 1500
         assert p["platform_timer"]["ticks"] == 2000
+
+
+def test_transport():
+    """hapticloth-bench transport: the cloth state of the 968-triangle square over real zenoh and
+    LCM on loopback, paced through the Hub (latency) and in a tight loop (throughput). Every
+    state the Hub published reaches the subscriber, and the tight loop's states do too (the raw
+    publisher used to stop at its first message, its refinement counts never set). The
+    latencies themselves are a benchmark's (BENCHMARKS.md)."""
+    if os.geteuid() != 0 or not shutil.which("unshare"):
+        pytest.skip("needs root and unshare for LCM's network namespace")
+    j = bench("transport", "--seconds", "1", timeout=300)
+    for t in ("zenoh", "lcm"):
+        lat, thr = j[t]["latency"], j[t]["throughput"]
+        assert lat["sent"] > 500 and lat["received"] == lat["sent"], (t, lat)
+        assert lat["bytes_per_message"] == thr["bytes_per_message"] > 529 * 12, (t, thr)
+        assert 0 <= lat["latency_p50_us"] <= lat["latency_p99_us"], (t, lat)
+        assert "platform_timer" in lat, t  # the figure beside the platform's own
+        assert thr["sent"] > lat["sent"] and thr["received"] > 0.9 * thr["sent"], (t, thr)
 
 
 def test_haptic_subscribers_bad_input():

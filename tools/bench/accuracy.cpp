@@ -173,6 +173,7 @@ struct Sweep {
 Sweep make_sweep(const AccuracyOptions& opt) {
   Sweep w;
   w.sc = main_scene(opt.source_dir);
+  if (opt.refine) w.sc.haptics.coupling.refine = *opt.refine;
   w.quick = opt.quick;
   w.say = progress("accuracy", opt.verbose);
   // The reference: dt 0.05 ms (0.25 ms with --quick), alpha 0.5 (second order), PCG to 1e-10 in

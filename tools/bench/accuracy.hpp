@@ -2,9 +2,9 @@
 // (`hapticloth-bench accuracy`, `hapticloth-bench stability`). Both print one JSON object.
 #pragma once
 
-#include <vector>
-
+#include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -18,6 +18,9 @@ struct AccuracyOptions {
   bool verbose = true;     ///< progress on stderr
   /// fine_cloth(): the scene of the cloth (default tools/scenes/hanging_square_16k.toml)
   std::string fine_scene;
+  /// accuracy(): local refinement under the fingertips in every run and the reference (default:
+  /// the main job's haptics.refine)
+  std::optional<haptics::Refine> refine;
 };
 
 /// Sweeps dt, alpha, solver and tolerance, and mesh resolution on three reference scenes
@@ -34,6 +37,8 @@ struct StabilityOptions {
   std::string source_dir;
   long random_steps = 100000;  ///< haptic ticks of the randomized-trajectory runs
   bool verbose = true;
+  /// local refinement under the fingertips in every run (default: the main job's haptics.refine)
+  std::optional<haptics::Refine> refine;
 };
 
 /// The stability stress map: dt x material stiffness (x1 .. x1000 the denim curves) x fingertip

@@ -235,6 +235,9 @@ CLI::App* add_accuracy(CLI::App& cli, Options& o) {
                                               "against direct coupling at 1 ms (several minutes)");
   acc->add_option("--fine-scene", o.fine_scene, "--fine-cloth: another cloth (a scene file of the "
                                                 "same 0.5 m square, e.g. tools/scenes/hanging_square_4k.toml)");
+  acc->add_option("--refine", o.refine, "local refinement under the fingertips in every run and the reference, "
+                                        "auto, on or off (default: the main job's haptics.refine)")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
   return acc;
 }
 
@@ -245,6 +248,9 @@ CLI::App* add_stability(CLI::App& cli, Options& o) {
                               "a reduced map", true);
   stab->add_option("--random-steps", o.random_steps, "haptic ticks of each randomized run (default 1e5)")
       ->check(CLI::Range(1L, 100000000L));
+  stab->add_option("--refine", o.refine, "local refinement under the fingertips in every run, auto, on or off "
+                                         "(default: the main job's haptics.refine)")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
   return stab;
 }
 
@@ -292,15 +298,24 @@ Commands add_commands(CLI::App& cli, Options& o) {
   return c;
 }
 
+// --refine's value (checked by CLI11: auto, on or off), none if not given.
+std::optional<haptics::Refine> parse_refine(const std::string& refine) {
+  if (refine.empty()) return std::nullopt;
+  return refine == "on" ? haptics::Refine::On : refine == "off" ? haptics::Refine::Off : haptics::Refine::Auto;
+}
+
 // The benchmarks that return one JSON result (and --plot where it applies), if one was named.
 std::optional<int> run_json_benchmark(const Commands& c, const Options& o) {
   const std::string src = HAPTICLOTH_SOURCE_DIR;
   if (*c.accuracy) {
-    const bench::AccuracyOptions a{.quick = o.quick, .source_dir = src, .fine_scene = o.fine_scene};
+    const bench::AccuracyOptions a{.quick = o.quick, .source_dir = src, .fine_scene = o.fine_scene,
+                                   .refine = parse_refine(o.refine)};
     return o.fine_cloth ? finish(bench::fine_cloth(a), o.json, "") : finish(bench::accuracy(a), o.json, o.png);
   }
   if (*c.stability)
-    return finish(bench::stability({.quick = o.quick, .source_dir = src, .random_steps = o.random_steps}), o.json, o.png);
+    return finish(bench::stability({.quick = o.quick, .source_dir = src, .random_steps = o.random_steps,
+                                     .refine = parse_refine(o.refine)}),
+                  o.json, o.png);
   if (*c.limit) return finish(bench::limit({.quick = o.quick, .source_dir = src}), o.json, "");
   if (*c.fidelity) return finish(bench::fidelity({.quick = o.quick, .square_press = o.square_quads}), o.json, "");
   if (*c.late_ticks) return finish(bench::late_ticks({.source_dir = src, .seed = o.late_seed}), o.json, "");
@@ -311,8 +326,7 @@ std::optional<int> run_json_benchmark(const Commands& c, const Options& o) {
 // --refine: as the scene key haptics.refine would set it (and refused where the key is).
 void apply_refine(const std::string& refine, app::Scene& sc) {
   if (refine.empty()) return;
-  sc.haptics.coupling.refine = refine == "on" ? haptics::Refine::On : refine == "off" ? haptics::Refine::Off
-                                                                                      : haptics::Refine::Auto;
+  sc.haptics.coupling.refine = *parse_refine(refine);
   if (sc.haptics.coupling.refine == haptics::Refine::On && sc.rendering == "multirate" &&
       sc.multirate_model == haptics::LocalModel::Patch)
     throw std::invalid_argument("--refine on: scene '" + sc.name + "' renders with the patch model, which "

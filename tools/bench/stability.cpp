@@ -161,7 +161,8 @@ json verdict(const Outcome& o, double energy_bound, double penetration_tol) {
 // Opens as accuracy() does: the main scene and a progress printer.
 json stability(const StabilityOptions& opt) {
   const bool quick = opt.quick;
-  const app::Scene sc = main_scene(opt.source_dir);
+  app::Scene sc = main_scene(opt.source_dir);
+  if (opt.refine) sc.haptics.coupling.refine = *opt.refine;
   const auto say = progress("stability", opt.verbose);
   const std::vector<double> dts = quick ? std::vector<double>{1e-3, 20e-3} : std::vector<double>{1e-3, 5e-3, 20e-3, 40e-3};
   const std::vector<double> scales = quick ? std::vector<double>{1, 1000} : std::vector<double>{1, 10, 100, 1000};

@@ -82,7 +82,7 @@ std::uint64_t publish_raw(const Options& o, const cloth::Mesh& mesh, Clock::time
     zp = std::make_unique<transport::ZenohPublisher>(*zs, transport::key_expression(o.name, "cloth"));
   }
   if (!o.lcm_url.empty()) lcm = std::make_unique<transport::LcmBus>(o.lcm_url);
-  hapticloth::cloth_state_t m;
+  hapticloth::cloth_state_t m{};  // every count 0, the refinement's too
   m.num_vertices = static_cast<int32_t>(mesh.positions.size());
   m.positions.assign(m.num_vertices, std::vector<float>(3));
   for (int i = 0; i < m.num_vertices; ++i)

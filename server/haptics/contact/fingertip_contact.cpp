@@ -183,6 +183,20 @@ void FingertipContact::couple_through_fingertip(int f, cloth::ProxyNode& P) {
     P.axis = refined_axis_[f];
     P.axis_stiffness = 1.0 / (1.0 / k1 + refined_c_[f]);
   }
+  limit_chain_force(P);
+}
+
+// The device's force limit on the chain through the fingertip: set_coupling_target pulled the
+// target back with the spring before the chain was formed (1 / (1/k + c), soft when c is
+// large), but across the axis the chain is k1 = k + b/h, stiffer than k. A fast finger far
+// from its proxy then asked the cloth for tens of newtons across the contact (k1 times the
+// reach), and a random two-finger stroke's step blew up (docs/contact.md, 'The chain through
+// the fingertip'). So the target is pulled back again until the chain's spring K (a - P) asks
+// no more than the limit.
+void FingertipContact::limit_chain_force(cloth::ProxyNode& P) const {
+  if (!(p_.max_force > 0.0)) return;
+  const double ask = (P.stiffness_matrix() * (P.target - P.x)).norm();
+  if (ask > p_.max_force) P.target = P.x + (p_.max_force / ask) * (P.target - P.x);
 }
 
 // The coupling's target for proxy P: the device's fingertip. But when the spring would ask

@@ -129,6 +129,7 @@ class FingertipContact final : public cloth::StepContacts {
   void decide_friction(int f, Sample& q) const;
   void set_coupling_target(cloth::ProxyNode& P, const FingerTarget& device) const;
   void couple_through_fingertip(int f, cloth::ProxyNode& P);
+  void limit_chain_force(cloth::ProxyNode& P) const;
   Vec3 expected_proxy(int f, bool first);
   void approach_refined_compliance(int f);
   double normal_at_end(const Sample& q, const Vec3& rel_step) const;

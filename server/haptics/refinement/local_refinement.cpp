@@ -108,7 +108,8 @@ void LocalRefinement::update(const RefinementInput& step) {
     for (int g = 0; g < fingers; ++g)
       if (in[g].in && std::binary_search(region.begin(), region.end(), at[g]->tri)) in_child[g] = in[g];
     child_[f]->settle(in_child, fresh ? 4 * p_.iterations : p_.iterations);
-    compliance_[f] = std::min(std::max(0.0, series_depth(*child_[f], f, in_child)) / in[f].force, p_.max_compliance);
+    if (in[f].force >= p_.min_force)
+      compliance_[f] = std::min(std::max(0.0, series_depth(*child_[f], f, in_child)) / in[f].force, p_.max_compliance);
   }
 }
 

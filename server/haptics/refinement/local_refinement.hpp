@@ -43,6 +43,13 @@ struct RefinementParams {
   /// least 20 N/m; where the bound acts the forces are under a millinewton, below what a
   /// fingertip detects (29-44 mN).
   double max_compliance = 0.05;
+  /// N: the least normal force whose extra depth is taken as a compliance. Under it the depth
+  /// over the force is the child's settling lag and a first touch's geometry, not the cloth's
+  /// response: a finger first touching a pinch with 0.9 mN measured 0.5 mm, c = 0.05 m/N, and
+  /// the compliance, brought down at the rate the fingertip may move, held the pinch-lift's
+  /// squeeze at 0.17-0.8 N instead of 1.5 N for a second. Under it the last compliance stays
+  /// (none on a first touch).
+  double min_force = 0.01;
 };
 
 /// Whether to refine where the global mesh does not resolve the contact patch. Auto and On: on

@@ -20,7 +20,7 @@ SimWorker::SimWorker(const cloth::ClothModel& model, const cloth::IntegratorConf
       out_(to_haptics),
       in_(from_haptics),
       coupling_(make_sim_coupling(mode, model, integ_, fingers, finger, coupling, patch)) {
-  mine_.resize(model.num_vertices(), static_cast<int>(to_haptics.back().near_triangles[0].size()));
+  last_snapshot_.resize(model.num_vertices(), static_cast<int>(to_haptics.back().near_triangles[0].size()));
 }
 
 // Which fingertips are within reach of the cloth's bounding box (the haptic loop's contact
@@ -48,7 +48,7 @@ void SimWorker::publish(double now) {
   std::copy(s_.x.begin(), s_.x.end(), snap.x.begin());
   std::copy(s_.v.begin(), s_.v.end(), snap.v.begin());
   coupling_->fill(r, s_, snap);
-  mine_.assign(snap);
+  last_snapshot_.assign(snap);
   out_.publish();
 }
 

@@ -35,7 +35,7 @@ class SimWorker {
 
   const cloth::ClothState& state() const { return s_; }
   /// The snapshot published by the last step (the sim thread's own copy).
-  const ClothSnapshot& last_snapshot() const { return mine_; }
+  const ClothSnapshot& last_snapshot() const { return last_snapshot_; }
   const cloth::Integrator& integrator() const { return integ_; }
   /// The proxies' contact (nullptr with the patch model).
   const FingertipContact* fingertips() const { return coupling_->fingertips(); }
@@ -65,7 +65,7 @@ class SimWorker {
   TripleBuffer<ClothSnapshot>& out_;
   TripleBuffer<HapticReport>& in_;
   std::unique_ptr<SimCoupling> coupling_;
-  ClothSnapshot mine_;
+  ClothSnapshot last_snapshot_;  // the last step's snapshot, as published
   Histogram step_us_, helper_wait_us_;
   double last_step_us_ = 0.0;
   std::uint64_t steps_ = 0;
