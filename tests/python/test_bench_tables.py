@@ -60,3 +60,25 @@ def test_a_broken_marker_is_refused_naming_the_file(tmp_path):
     with pytest.raises(SystemExit) as e:
         bt.render(text.replace("<!-- table late-ticks -->", ""), doc="B.md")
     assert "B.md" in str(e.value)
+
+
+def test_each_real_time_row_carries_the_platform_timer_of_its_own_run():
+    """A real-time figure stands beside the platform timer measured in the same invocation: the
+    haptic loop's row takes its p99 from the haptic run's JSON, not another run's."""
+    bt = load_tool()
+    rt = json.loads((TOP / "docs" / "bench" / "realtime.json").read_text())
+    changed = copy.deepcopy(rt)
+    changed["runs"]["haptic"]["platform_timer"]["p99_us"] = 987.6
+    rows = [line for line in bt.realtime(changed).splitlines() if "hapticloth-bench haptic --json" in line]
+    assert len(rows) == 1 and "/ 987.6 /" in rows[0], rows
+    timer_row = next(line for line in bt.realtime(changed).splitlines() if "timer --json" in line)
+    assert "987.6" not in timer_row
+
+
+def test_stability_rows_count_restored_steps_and_failed_runs():
+    bt = load_tool()
+    st = json.loads((TOP / "docs" / "bench" / "stability.json").read_text())
+    changed = copy.deepcopy(st)
+    changed["random"][0].update(restores=3, max_penetration_mm=7.4, **{"pass": False})
+    row = next(line for line in bt.stability(changed).splitlines() if "random run, seed" in line)
+    assert "| 1 | 0 | 3 | deepest 7.400 mm |" in row, row
