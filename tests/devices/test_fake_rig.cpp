@@ -133,6 +133,7 @@ struct LoopRun {
   Json summary;                     ///< the rig's JSON summary
   std::uint64_t allocations = 0;    ///< during read/write
   int ticks = 0;
+  int late_wakeups = 0;             ///< ticks this loop woke more than a period past its deadline
 };
 
 /// Runs the device loop at 1 kHz (absolute deadlines) until the rig has exited, at most
@@ -154,6 +155,7 @@ LoopRun run_against_rig(UdpDevice& dev, RigProcess& rig, const Controller& contr
     }
     clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr);
     const double now = mono_now();
+    run.late_wakeups += now - (static_cast<double>(next.tv_sec) + 1e-9 * static_cast<double>(next.tv_nsec)) > 1e-3;
     hapticloth::test::AllocationGuard guard;
     const Status st = dev.read(now, state);
     if (state.received_time >= 0.0) cmd = control(state);
@@ -273,9 +275,13 @@ TEST(UdpFakeRig, CleanRunFollowsTheTrajectoryAndEchoesForces) {
   EXPECT_EQ(valid, s["sequences"].get<std::uint64_t>());
   EXPECT_GE(valid, 1400u);
   EXPECT_LE(sent - (c.samples + c.dropped_total()), sent / 100) << "lost in the kernel";
-  // Nothing is dropped in a clean run but what this loop read late (stale, on a loaded machine).
+  // Nothing is dropped in a clean run but stale samples, and a sample is stale only when a side
+  // ran late: the rig stamps a packet with its tick's scheduled time, so one sent more than a
+  // period late (its late_ticks) arrives aged, and this loop reading more than a period late ages
+  // what waits for it. (On a loaded machine both happen: 28 stale against the rig's 50 late ticks
+  // in a clean-clone CI run beside another test; none on an idle one.)
   EXPECT_EQ(c.dropped_total() - c.dropped_stale, 0u);
-  EXPECT_LE(c.dropped_stale, valid / 100);
+  EXPECT_LE(c.dropped_stale, s["late_ticks"].get<std::uint64_t>() + static_cast<std::uint64_t>(run.late_wakeups));
   EXPECT_LE(c.samples, valid);
   EXPECT_EQ(run.allocations, 0u);
 

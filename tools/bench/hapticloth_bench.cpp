@@ -139,6 +139,12 @@ struct Commands {
   CLI::App *step, *haptic, *timer, *accuracy, *stability, *limit, *fidelity, *late_ticks, *tactile;
 };
 
+// --refine auto|on|off on benchmark `b`: what it refines, and what it is without the option.
+void add_refine(CLI::App* b, Options& o, const std::string& what, const std::string& otherwise) {
+  b->add_option("--refine", o.refine, what + ", auto, on or off (default: " + otherwise + ")")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
+}
+
 CLI::App* add_step(CLI::App& cli, Options& o) {
   StepOptions& s = o.step;
   auto* step = cli.add_subcommand("step", "time the cloth step of a scene, headless");
@@ -174,10 +180,7 @@ CLI::App* add_step(CLI::App& cli, Options& o) {
                                      "play the scene's [device] script from the cloth at rest (its preroll), directly "
                                      "coupled on the stepped clock: the step's time by fingertips in contact");
   script_flag->excludes(pinch_flag);
-  step->add_option("--refine", o.refine,
-                   "--script, --pinch: local refinement under the fingertips, auto, on or off (default: the "
-                   "scene's haptics.refine)")
-      ->check(CLI::IsMember({"auto", "on", "off"}));
+  add_refine(step, o, "--script, --pinch: local refinement under the fingertips", "the scene's haptics.refine");
   return step;
 }
 
@@ -192,9 +195,7 @@ CLI::App* add_haptic(CLI::App& cli, Options& o) {
   haptic->add_flag("--no-tactile", o.no_tactile,
                    "without the device's tactile display (the scene's [device.tactile]): the loop's "
                    "figures with tactile rendering off, to compare");
-  haptic->add_option("--refine", o.refine,
-                     "local refinement under the fingertips, auto, on or off (default: the scene's haptics.refine)")
-      ->check(CLI::IsMember({"auto", "on", "off"}));
+  add_refine(haptic, o, "local refinement under the fingertips", "the scene's haptics.refine");
   static int listed_only = 0;  // run_elsewhere takes these before parsing: listed for --help
   haptic->add_option("--subscribers", listed_only,
                      "N subscribers (half zenoh, half LCM) at a 120 Hz cloth rate: the period error "
@@ -235,9 +236,8 @@ CLI::App* add_accuracy(CLI::App& cli, Options& o) {
                                               "against direct coupling at 1 ms (several minutes)");
   acc->add_option("--fine-scene", o.fine_scene, "--fine-cloth: another cloth (a scene file of the "
                                                 "same 0.5 m square, e.g. tools/scenes/hanging_square_4k.toml)");
-  acc->add_option("--refine", o.refine, "local refinement under the fingertips in every run and the reference, "
-                                        "auto, on or off (default: the main job's haptics.refine)")
-      ->check(CLI::IsMember({"auto", "on", "off"}));
+  add_refine(acc, o, "local refinement under the fingertips in every run and the reference",
+             "the main job's haptics.refine");
   return acc;
 }
 
@@ -248,9 +248,7 @@ CLI::App* add_stability(CLI::App& cli, Options& o) {
                               "a reduced map", true);
   stab->add_option("--random-steps", o.random_steps, "haptic ticks of each randomized run (default 1e5)")
       ->check(CLI::Range(1L, 100000000L));
-  stab->add_option("--refine", o.refine, "local refinement under the fingertips in every run, auto, on or off "
-                                         "(default: the main job's haptics.refine)")
-      ->check(CLI::IsMember({"auto", "on", "off"}));
+  add_refine(stab, o, "local refinement under the fingertips in every run", "the main job's haptics.refine");
   return stab;
 }
 
