@@ -641,3 +641,28 @@ if __name__ == "__main__":
         veth_client(sys.argv[2])
     else:
         sys.exit(f"unknown role {role}")
+
+
+def test_replay_keeps_a_recorded_batch_together(tmp_path):
+    """A recorded batch (two fingers' commands of one source and utime) is one batch again in
+    the replay, however far apart the recorder logged them: the log's timestamp is when the
+    recorder received each, and a recorder held up 0.3 s once put the replayed pinch's fingers
+    1.2 s out of step on the stepped clock. Another batch keeps its own time."""
+    import lcm
+    from hapticloth.client import channel, read_replay, trajectory_message
+
+    log = tmp_path / "batches.lcmlog"
+    w = lcm.EventLog(str(log), "w", overwrite=True)
+    sent = []
+    for stamp, finger, source, utime in ((1_000_000, 0, "replayer", 111), (1_300_000, 1, "replayer", 111),
+                                         (2_000_000, 0, "replayer", 222)):
+        m = trajectory_message(finger, [0.1], [(0.0, 0.0, 0.0)])
+        m.source, m.utime = source, utime
+        w.write_event(stamp, channel("trajectory"), m.encode())
+        sent.append((finger, utime))
+    w.close()
+    plan = read_replay(log, mode="commands")
+    assert [(m.finger, m.utime) for _, m in plan] == sent
+    assert [due for due, _ in plan] == [0.0, 0.0, 1.0]
+    # At double speed the spacing halves; the batch stays together.
+    assert [due for due, _ in read_replay(log, mode="commands", speed=2.0)] == [0.0, 0.0, 0.5]

@@ -326,13 +326,28 @@ def read_replay(path, mode="auto", speed=1.0, lead=0.1, max_seconds=600.0):
     if mode == "commands":
         if not commands:
             raise UserError(f"{path}: no trajectory commands ({channel('trajectory')}) to replay")
-        t0 = commands[0][0]
-        return [(min((ts - t0) / 1e6 / speed, max_seconds), m) for ts, m in commands]
+        return _command_plan(commands, speed, max_seconds)
     plan = [(0.0, trajectory_message(f, times, points))
             for f, (times, points) in enumerate(positions_from_haptics(samples, speed, lead)) if times]
     if not plan:
         raise UserError(f"{path}: no trajectory commands ({channel('trajectory')}) or device "
                         f"positions ({channel('haptics')}) to replay")
+    return plan
+
+
+def _command_plan(commands, speed, max_seconds):
+    """[(due, m)] from the log's [(timestamp, m)]. The timestamp is when the recorder received a
+    command, so the commands of one batch (one source and utime: sent together, started together)
+    can stand apart in the log by however long the recorder's thread was held up; played at those
+    spacings they became separate batches, and on the stepped clock a 0.3 s gap put the replayed
+    pinch's fingers 1.2 s out of step. So every command of a batch is due when its first was."""
+    t0 = commands[0][0]
+    first = {}
+    plan = []
+    for ts, m in commands:
+        ts = first.setdefault((m.source, m.utime), ts)
+        plan.append((min((ts - t0) / 1e6 / speed, max_seconds), m))
+    plan.sort(key=lambda dm: dm[0])  # stable: a batch's commands stay in their order, together
     return plan
 
 
