@@ -297,12 +297,15 @@ def test_a_second_signal_exits_at_once(first, second, tmp_path):
     # ended in order, exit 0 with its whole summary. That is the right end for a signal that
     # came late, not the case under test, so the attempt is repeated (at most 4 times); a
     # handler that ignored the second signal would end every attempt that way.
+    # Likewise a second signal that lands after the summary was printed (the server tearing down
+    # its threads): it exits at once, 128 + signal, but the orderly end was all but done.
     for attempt in range(4):
         folder = tmp_path / f"attempt{attempt}"
         folder.mkdir()
         rc, took, out, err = second_signal_during_wind_down(first, second, folder)
-        if rc != 0:
+        if rc != 0 and "stopped" not in out:
             break
+        assert rc in (0, 128 + second), f"exit {rc}\n{out}\n{err[-2000:]}"
         assert f"stopped          by {signal.Signals(first).name}" in out, out
     assert rc == 128 + second, f"exit {rc} in each of 4 attempts\n{out}\n{err[-2000:]}"
     assert took < 2.0, took  # a safety limit; that it was _exit is the missing summary below
