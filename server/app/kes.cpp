@@ -7,6 +7,7 @@
 #include <iomanip>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
@@ -20,19 +21,21 @@ namespace hapticloth::app {
 
 using cloth::Vec3;
 
+namespace {
+// Each test with its name, once: to_string and parse_kes_test both read it.
+constexpr std::pair<KesTest, const char*> kKesTests[] = {
+    {KesTest::Weft, "weft"}, {KesTest::Warp, "warp"}, {KesTest::Shear, "shear"}};
+}  // namespace
+
 KesTest parse_kes_test(const std::string& name) {
-  if (name == "weft") return KesTest::Weft;
-  if (name == "warp") return KesTest::Warp;
-  if (name == "shear") return KesTest::Shear;
+  for (const auto& [test, test_name] : kKesTests)
+    if (name == test_name) return test;
   throw std::invalid_argument("unknown test '" + name + "' (weft, warp, shear)");
 }
 
 const char* to_string(KesTest t) {
-  switch (t) {
-    case KesTest::Weft: return "weft";
-    case KesTest::Warp: return "warp";
-    case KesTest::Shear: return "shear";
-  }
+  for (const auto& [test, test_name] : kKesTests)
+    if (t == test) return test_name;
   return "?";
 }
 

@@ -304,7 +304,7 @@ TEST(FingertipContact, ChainThroughTheFingertipAsksNoMoreThanTheLimit) {
   haptics::FingertipContact& tips = rig.tips;
   cloth::ClothState s = cloth::rest_state(rig.m);
   const double dt = rig.cfg.dt;
-  tips.set_refined_compliance(0, 0.005);
+  tips.set_refined_compliance(0, haptics::SeriesCompliance{.c = 0.005});
   std::array<haptics::FingerTarget, haptics::kMaxFingers> in{};
   double largest_ask = 0.0;
   bool chained = false;

@@ -259,12 +259,47 @@ TEST(RefinedContact, WholeDrumChildCarriesTheExactForceAtTheExactDepth) {
   }
 }
 
+// A press straight down with friction 0.6, between the global vertices of a 12 mm mesh (4 mm
+// from the centre vertex), held. The flat drum pushes a fingertip there back along its own
+// normal: sideways by the slope of the membrane at the press, which the disc's Green function
+// puts far under 1% of the force 4 mm from the centre. The coarse facets are tilted there, and
+// the refined compliance acts along one axis while the coupling holds the fingertip stiffly
+// across it: taken along the facets' normal, the device's straight descent crossed the axis and
+// the sticking contact rendered that as a sideways force (here 2.2% of the normal force against
+// the unrefined mesh's 0.6%; 8.5% in `hapticloth-bench accuracy`'s press); along the refined
+// membrane's normal (RefinedContact::push) it stays within the unrefined mesh's own (0.55%).
+TEST(LocalRefinement, PressStraightDownIsNotPushedSideways) {
+  double unrefined = 0.0;
+  for (const haptics::Refine refine : {haptics::Refine::Off, haptics::Refine::On}) {
+    test::DrumSpec spec;
+    spec.centre_edge = spec.rim_edge = 12e-3;
+    spec.offset = 4e-3;
+    spec.friction = 0.6;
+    spec.device_depth = 3e-3;
+    spec.speed = 4e-3;
+    spec.hold = 0.3;
+    spec.refine = refine;
+    const test::DrumResult r = test::press_drum(spec);
+    const double ratio = r.final_sideways / r.final_force;
+    std::printf("press straight down 4 mm from the centre, 12 mm edges, friction 0.6, refinement %s: %.4f N "
+                "down, %.5f N sideways (%.2f%%)\n", haptics::to_string(refine), r.final_force, r.final_sideways,
+                100 * ratio);
+    ASSERT_GT(r.final_force, 0.05);
+    if (refine == haptics::Refine::Off) unrefined = ratio;
+    else EXPECT_LE(ratio, std::max(0.01, unrefined)) << "the refined press renders a sideways force of its own";
+  }
+}
+
 // A frictionless stroke across the drum at constant device depth (3 mm), through the centre from
 // 4 cm on one side to 4 cm on the other at 20 mm/s: the normal force along the path against the
 // exact one at the proxy's depth and offset (off_centre_force). Without refinement the 12 mm
 // mesh is 41% too stiff on average and the force ripples with the facets; with it every sample
 // is within the 3% the press is held to (the child's own discretisation at grading 1.0: the
-// press on these meshes is 1-2.5% stiff), across the global vertices the contact crosses.
+// press on these meshes is 1-2.5% stiff), across the global vertices the contact crosses. The
+// facets are what the ripple measures: how far a sample's error departs from the stroke's mean
+// error (a smooth surface keeps it constant along the path): without the child 25.5% on the
+// 12 mm mesh; with it 0.67% there and 1.62% on the 25 mm mesh, where the child, re-centred at a
+// tenth of its reach, still leaves dips of its own (the 1% of issue 35 is not met there).
 TEST(LocalRefinement, StrokeFollowsTheExactForceAlongThePath) {
   struct Case {
     double edge;
@@ -283,12 +318,17 @@ TEST(LocalRefinement, StrokeFollowsTheExactForceAlongThePath) {
       drag += p.along;
       normal += p.normal;
     }
-    std::printf("edge %4.1f mm, refinement %s: normal force against the exact one: mean %+.2f%%, worst %.2f%% "
-                "over %zu samples; sideways / normal %+.4f\n", c.edge * 1e3, haptics::to_string(c.refine),
-                100 * mean, 100 * worst, s.size(), drag / normal);
+    double ripple = 0.0;
+    for (const auto& p : s) ripple = std::max(ripple, std::abs(p.error() - mean));
+    std::printf("edge %4.1f mm, refinement %s: normal force against the exact one: mean %+.2f%%, worst %.2f%%, "
+                "ripple %.2f%% over %zu samples; sideways / normal %+.4f\n", c.edge * 1e3,
+                haptics::to_string(c.refine), 100 * mean, 100 * worst, 100 * ripple, s.size(), drag / normal);
     EXPECT_GT(s.size(), 70u);
     if (c.refine == haptics::Refine::On) {
       EXPECT_LE(worst, 0.03) << c.edge;
+      EXPECT_LE(ripple, c.edge < 20e-3 ? 0.01 : 0.02) << c.edge;
+    } else {
+      EXPECT_GT(ripple, 0.05) << "the unrefined mesh's facets, which the check must see";
     }
     EXPECT_LT(std::abs(drag / normal), 0.01) << c.edge;  // frictionless: no drag beyond 1%
   }

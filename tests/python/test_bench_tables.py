@@ -82,3 +82,29 @@ def test_stability_rows_count_restored_steps_and_failed_runs():
     changed["random"][0].update(restores=3, max_penetration_mm=7.4, **{"pass": False})
     row = next(line for line in bt.stability(changed).splitlines() if "random run, seed" in line)
     assert "| 1 | 0 | 3 | deepest 7.400 mm |" in row, row
+
+
+def test_peers_rows_mark_unstable_runs_and_name_the_server_commit():
+    bt = load_tool()
+    peers = json.loads((TOP / "docs" / "bench" / "peers.json").read_text())
+    changed = copy.deepcopy(peers)
+    changed["commit"] = "abc1234"
+    first = changed["results"][0]
+    at_1ms = next(r for r in first["runs"] if abs(r["dt_ms"] - 1.0) < 1e-9)
+    at_1ms.update(stable=False, cpu_s_per_sim_s=9.87)
+    text = bt.peers(changed)
+    row = text.splitlines()[2]
+    assert row.startswith(f"| {first['simulator']} {first['variant']} |"), row
+    assert "(9.87, unstable)" in row, row
+    assert "our server at abc1234" in text
+
+
+def test_fine_cloth_rows_follow_each_cloth():
+    bt = load_tool()
+    fine = json.loads((TOP / "docs" / "bench" / "fine-cloth.json").read_text())
+    rows = bt.fine_cloth(fine).splitlines()[2:]
+    assert [r.split(" |")[0] for r in rows] == [f"| {n} triangles" for n in sorted(fine["runs"], key=int)]
+    changed = copy.deepcopy(fine)
+    response = next(r for r in changed["runs"]["968"]["runs"] if r["run"] == "multirate response")
+    response.update(force_err_rel=0.4321, max_gap_mm=9.87)
+    assert "43.2% / 9.87 mm" in bt.fine_cloth(changed).splitlines()[2]

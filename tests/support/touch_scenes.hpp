@@ -80,6 +80,7 @@ struct DrumSpec {
   double shear = 500.0;          ///< Gt, N/m (isotropic with Poisson 0: Et / 2)
   double density = 0.1;          ///< kg/m^2
   double offset = 0.0;           ///< m, the press's distance from the centre (along x)
+  double friction = 0.0;         ///< the fingertip's Coulomb coefficient (frictionless by default)
   double speed = 1e-3;           ///< m/s, the device's descent (quasi-static)
   double device_depth = 4.5e-3;  ///< m the device goes below touch
   double hold = 0.0;             ///< s the device then stays there
@@ -115,6 +116,7 @@ struct DrumResult {
   double max_penetration = 0.0;   ///< m, deepest cloth point inside the sphere
   double final_depth = 0.0;       ///< m, the proxy's depth at the end
   double final_force = 0.0;       ///< N, rendered at the end (normal to the drum)
+  double final_sideways = 0.0;    ///< N, rendered at the end across the drum's normal
   haptics::SessionReport report;
 };
 
@@ -144,7 +146,7 @@ inline MembraneDisc membrane_disc(const DrumSpec& spec) {
   mat.warp = cloth::StrainStressCurve::linear(d.Et);
   mat.shear = cloth::StrainStressCurve::linear(spec.shear, true);
   for (auto* c : {&mat.weft, &mat.warp, &mat.shear}) c->max_strain = 1.0;
-  MembraneDisc m{cloth::build_model(mesh, mat, cloth::disc_rim(mesh)), {}, {}, touch_session(0.0)};
+  MembraneDisc m{cloth::build_model(mesh, mat, cloth::disc_rim(mesh)), {}, {}, touch_session(spec.friction)};
   m.start = cloth::rest_state(m.model);
   for (auto& x : m.start.x) x *= d.prestretch;  // pre-stretched, rim pinned there
   m.ic.dt = 1e-3;
@@ -212,6 +214,7 @@ inline DrumResult press_drum(const DrumSpec& spec) {
     if (touched) curve.emplace_back(depth, f.force.z());
     res.final_depth = depth;
     res.final_force = f.force.z();
+    res.final_sideways = f.force.head<2>().norm();
   });
   res.report = rig.session->report();
   res.max_penetration = res.report.max_penetration;

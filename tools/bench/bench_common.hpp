@@ -64,6 +64,18 @@ inline RunConfig default_config(const app::Scene& sc) {
   return c;
 }
 
+// Where the multirate path's rendered force puts finger f's proxy in the global cloth: the
+// fingertip plus the stretch of the spring the step solved with, K (with local refinement the
+// scene's k in series with the compliance the coarse mesh lacks). The reported proxy, tip + F / k,
+// is the refined child's sphere, c F deeper than the global cloth by design (docs/contact.md,
+// 'Local refinement under the fingertips'); without a step's spring (the patch model solves no
+// proxies), the reported one.
+inline Eigen::Vector3d proxy_in_global_cloth(const haptics::FingerReport& r, const cloth::Integrator& step, int f) {
+  const auto& proxies = step.proxies();
+  if (f >= static_cast<int>(proxies.size()) || !(proxies[f].stiffness > 0.0)) return r.proxy;
+  return r.position + proxies[f].stiffness_matrix().inverse() * r.force;
+}
+
 inline double cpu_seconds() {
   timespec ts;
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);

@@ -74,10 +74,12 @@ Outcome run(const app::Scene& sc, const cloth::ClothModel& m, const cloth::Cloth
         // every step whether or not it touches (a finger through the cloth touches nothing);
         // the global proxy, as the fingertip reported under local refinement sits deeper than
         // the coarse cloth by design (the dimple it cannot take: docs/contact.md). The multirate
-        // path renders its proxy between steps; it is checked while in contact.
+        // path renders its proxy between steps; it is checked while in contact, where its
+        // force puts it in the global cloth.
         for (int f = 0; f < h.fingers(); ++f)
           if (rep.finger[f].in_contact || !c.multirate) {
-            const Vec3& sphere = c.multirate ? rep.finger[f].proxy : w.integrator().proxies()[f].x;
+            const Vec3 sphere = c.multirate ? proxy_in_global_cloth(rep.finger[f], w.integrator(), f)
+                                            : w.integrator().proxies()[f].x;
             const double pen = r - distance_to_cloth(sphere, s.x, m);
             o.max_penetration = std::max(o.max_penetration, pen);
             ++o.contact_checks;

@@ -168,17 +168,22 @@ void FingertipContact::approach_refined_compliance(int f) {
 // no longer carried the force the device rendered, and the coupling's energy balance saw
 // energy created (docs/contact.md, "the chain through the fingertip").
 //
-// The child measures how much deeper the fingertip sits along the contact's normal, so c acts
-// along the last step's normal n alone: the spring is k1 across it and 1 / (1/k1 + c) along it.
-// Isotropic, a slack cloth's compliance left the proxy a spring of a few N/m sideways, and a
-// sticking contact dragged it with the cloth, far beyond the friction cone.
+// The child measures how much deeper the fingertip sits, so c acts along one axis a alone: the
+// spring is k1 across it and 1 / (1/k1 + c) along it. Isotropic, a slack cloth's compliance
+// left the proxy a spring of a few N/m sideways, and a sticking contact dragged it with the
+// cloth, far beyond the friction cone. The axis is the refined membrane's normal at the contact
+// (the direction the child's cloth pushes its sphere, RefinedContact::push). Along the coarse
+// facets' normal instead (the step's contact normal, tilted from the membrane's near a vertex),
+// a press straight down moved the device across the axis, where k1 holds it, and the sticking
+// contact rendered a sideways force the smooth membrane does not have (docs/contact.md, 'The
+// axis of the compliance'). Until the child has settled once, the step's normal.
 void FingertipContact::couple_through_fingertip(int f, cloth::ProxyNode& P) {
   const double kb = p_.coupling_damping / h_;
   const double k1 = p_.coupling_stiffness + kb;
   P.target = (p_.coupling_stiffness * P.target + kb * (tip_[f] + h_ * P.target_velocity)) / k1;
   P.stiffness = k1;
   P.damping = 0.0;
-  refined_axis_[f] = out_[f].normal;
+  refined_axis_[f] = refined_push_[f].squaredNorm() > 0.0 ? refined_push_[f] : out_[f].normal;
   if (refined_axis_[f].squaredNorm() > 0.0) {
     P.axis = refined_axis_[f];
     P.axis_stiffness = 1.0 / (1.0 / k1 + refined_c_[f]);

@@ -51,6 +51,15 @@ struct FingerTarget {
   Vec3 velocity = Vec3::Zero();  ///< m/s
 };
 
+/// What local refinement puts in series with a finger's coupling (LocalRefinement): the
+/// compliance the global mesh lacks, and the direction along which the refined cloth takes it,
+/// the refined membrane's own normal at the contact (RefinedContact::push). Zero axis: not
+/// known, the step's contact normal is taken.
+struct SeriesCompliance {
+  double c = 0.0;                  ///< m/N
+  Eigen::Vector3d axis = Eigen::Vector3d::Zero();  ///< unit
+};
+
 class FingertipContact final : public cloth::StepContacts {
  public:
   /// When a step ends (revise()): released contacts and friction corrections that add up to
@@ -80,7 +89,10 @@ class FingertipContact final : public cloth::StepContacts {
   /// Local refinement (LocalRefinement): the compliance c (m/N) the global mesh lacks under
   /// finger f, in series with its coupling spring from the next step on: k_eff = 1 / (1/k + c).
   /// It is approached from the next step on at a bounded rate (approach_refined_compliance).
-  void set_refined_compliance(int f, double c) { refined_target_[f] = c; }
+  void set_refined_compliance(int f, const SeriesCompliance& s) {
+    refined_target_[f] = s.c;
+    refined_push_[f] = s.axis;
+  }
   /// Finger f's proxy in the global cloth, m (result().proxy is the fingertip: deeper by the
   /// refined compliance).
   const Vec3& global_proxy(int f) const { return integ_.proxies()[f].x; }
@@ -158,6 +170,7 @@ class FingertipContact final : public cloth::StepContacts {
   std::array<ProxyResult, kMaxFingers> out_{};
   std::array<double, kMaxFingers> refined_c_{};  // m/N, in series with the coupling
   std::array<double, kMaxFingers> refined_target_{};  // m/N, the refinement's latest
+  std::array<Vec3, kMaxFingers> refined_push_{};      // its direction, unit (zero: the step's normal)
   std::array<Vec3, kMaxFingers> last_disp_{};    // the proxy's displacement in the last step
   std::array<Vec3, kMaxFingers> last_target_{};  // the coupling's target in the last step
   std::array<Vec3, kMaxFingers> device_target_{};  // this step's device target (set_coupling_target)

@@ -94,7 +94,7 @@ void LocalRefinement::update(const RefinementInput& step) {
   for (int f = 0; f < fingers; ++f) {
     if (!in[f].in) {
       child_[f].reset();
-      compliance_[f] = 0.0;
+      compliance_[f] = SeriesCompliance{};
       continue;
     }
     const Vec3 here = refiner_.rest_point(*at[f]);
@@ -108,8 +108,11 @@ void LocalRefinement::update(const RefinementInput& step) {
     for (int g = 0; g < fingers; ++g)
       if (in[g].in && std::binary_search(region.begin(), region.end(), at[g]->tri)) in_child[g] = in[g];
     child_[f]->settle(in_child, fresh ? 4 * p_.iterations : p_.iterations);
-    if (in[f].force >= p_.min_force)
-      compliance_[f] = std::min(std::max(0.0, series_depth(*child_[f], f, in_child)) / in[f].force, p_.max_compliance);
+    if (in[f].force >= p_.min_force) {
+      compliance_[f].c = std::min(std::max(0.0, series_depth(*child_[f], f, in_child)) / in[f].force, p_.max_compliance);
+      const Vec3& push = child_[f]->push(f);
+      if (push.squaredNorm() > 0.0) compliance_[f].axis = push.normalized();
+    }
   }
 }
 

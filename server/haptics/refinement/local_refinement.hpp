@@ -45,10 +45,10 @@ struct RefinementParams {
   double max_compliance = 0.05;
   /// N: the least normal force whose extra depth is taken as a compliance. Under it the depth
   /// over the force is the child's settling lag and a first touch's geometry, not the cloth's
-  /// response: a finger first touching a pinch with 0.9 mN measured 0.5 mm, c = 0.05 m/N, and
-  /// the compliance, brought down at the rate the fingertip may move, held the pinch-lift's
-  /// squeeze at 0.17-0.8 N instead of 1.5 N for a second. Under it the last compliance stays
-  /// (none on a first touch).
+  /// response, and the compliance it gave held a pinch's squeeze far under k x depth (docs/
+  /// contact.md, "The device's limit on the chain, and no compliance from a first touch");
+  /// under it the last compliance stays (none on a first touch). 10 mN is under the 29-44 mN a
+  /// fingertip detects.
   double min_force = 0.01;
 };
 
@@ -89,7 +89,9 @@ class LocalRefinement {
 
   /// Finger f's child, if it has one now.
   const RefinedContact* child(int f) const { return child_[f].get(); }
-  double compliance(int f) const { return compliance_[f]; }
+  double compliance(int f) const { return compliance_[f].c; }
+  /// What the next step puts in series with finger f: the compliance and the axis it acts along.
+  const SeriesCompliance& series(int f) const { return compliance_[f]; }
   double finest() const { return spec_.finest; }
   double resolved_edge() const { return p_.resolved * spec_.finest; }
   std::uint64_t builds() const { return builds_; }
@@ -107,7 +109,7 @@ class LocalRefinement {
   RefineSpec spec_;
   std::array<std::unique_ptr<RefinedContact>, kMaxFingers> child_;
   std::array<Vec3, kMaxFingers> anchor_{};  // rest point each child is centred on
-  std::array<double, kMaxFingers> compliance_{};
+  std::array<SeriesCompliance, kMaxFingers> compliance_{};
   std::uint64_t builds_ = 0;
 };
 

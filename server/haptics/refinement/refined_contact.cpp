@@ -148,6 +148,7 @@ double RefinedContact::assemble(const std::vector<Vec3>& x, const std::array<dou
   for (int f = 0; f < kMaxFingers; ++f) {
     gs_[f] = 0.0;
     C_[f] = 1.0;
+    push_[f].setZero();
     if (!fing_[f].in) continue;
     const Vec3& n = fing_[f].normal;
     const Vec3 c = fing_[f].centre - s[f] * n;
@@ -157,6 +158,7 @@ double RefinedContact::assemble(const std::vector<Vec3>& x, const std::array<dou
       if (!touch(x[i], c, model_.vertex_area[i], law_, t)) continue;
       const double mn = t.m.dot(n);
       gs -= t.f1 * mn;
+      push_[f] -= t.f1 * t.m;
       kss += t.f2 * mn * mn;
       const int a = model_.free_index[i];
       if (a < 0) continue;

@@ -66,6 +66,11 @@ class RefinedContact {
   double settle(const std::array<ChildFinger, kMaxFingers>& fingers, int iterations);
   /// Finger f's extra depth s_f (m) along -normal beyond the global proxy.
   double extra_depth(int f) const { return s_[f]; }
+  /// The child's net push on sphere f at the last settle, N (from the cloth toward the
+  /// fingertip). The sphere is moved along the normal it was given alone, but a frictionless
+  /// sphere in a smooth membrane is pushed along the membrane's own normal there, whatever the
+  /// coarse facets' normal was: this is the direction the refined cloth pushes the fingertip.
+  const Vec3& push(int f) const { return push_[f]; }
 
   const RefinedMesh& mesh() const { return mesh_; }
   const cloth::ClothModel& model() const { return model_; }
@@ -83,6 +88,7 @@ class RefinedContact {
   ChildLaw law_;
   std::vector<Vec3> x_, x_try_, placed_, placed_before_;
   std::array<double, kMaxFingers> s_{}, s_try_{};
+  std::array<Vec3, kMaxFingers> push_{};
   std::array<ChildFinger, kMaxFingers> fing_{};
   cloth::SymCsr A_;  // the child's pattern (model_.pattern), solved with CHOLMOD
   std::unique_ptr<cloth::LinearSolver> chol_;

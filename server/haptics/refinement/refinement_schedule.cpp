@@ -11,7 +11,7 @@ void InlineRefinement::after_step(const cloth::ClothState& s, FingertipContact& 
   r_->update(in_);
   ++updates_;
   regions_.gather(*r_, fingers, updates_);
-  for (int f = 0; f < fingers; ++f) contact.set_refined_compliance(f, r_->compliance(f));
+  for (int f = 0; f < fingers; ++f) contact.set_refined_compliance(f, r_->series(f));
 }
 
 BackgroundRefinement::BackgroundRefinement(std::unique_ptr<LocalRefinement> r)
@@ -30,7 +30,7 @@ BackgroundRefinement::~BackgroundRefinement() {
 // matters) and takes the compliances the worker last settled. A finger out of contact in this
 // step gets none at once: the compliance of a touch that ended must not stiffen the next.
 void BackgroundRefinement::after_step(const cloth::ClothState& s, FingertipContact& contact, int fingers) {
-  std::array<double, kMaxFingers> c{};
+  std::array<SeriesCompliance, kMaxFingers> c{};
   {
     std::lock_guard<std::mutex> lock(m_);
     skipped_.fetch_add(has_pending_ ? 1 : 0, std::memory_order_relaxed);
@@ -41,7 +41,8 @@ void BackgroundRefinement::after_step(const cloth::ClothState& s, FingertipConta
     regions_ready_ = false;
   }
   cv_.notify_one();
-  for (int f = 0; f < fingers; ++f) contact.set_refined_compliance(f, contact.result(f).in_contact ? c[f] : 0.0);
+  for (int f = 0; f < fingers; ++f)
+    contact.set_refined_compliance(f, contact.result(f).in_contact ? c[f] : SeriesCompliance{});
 }
 
 void BackgroundRefinement::work() {
@@ -57,7 +58,7 @@ void BackgroundRefinement::work() {
     r_->update(working_);
     gathered_.gather(*r_, working_.fingers, updates_.load(std::memory_order_relaxed) + 1);
     std::lock_guard<std::mutex> lock(m_);
-    for (int f = 0; f < working_.fingers; ++f) compliance_[f] = r_->compliance(f);
+    for (int f = 0; f < working_.fingers; ++f) compliance_[f] = r_->series(f);
     std::swap(gathered_, ready_);
     regions_ready_ = true;
     builds_.store(r_->builds(), std::memory_order_relaxed);

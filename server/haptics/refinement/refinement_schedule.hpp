@@ -74,7 +74,7 @@ class BackgroundRefinement final : public RefinementSchedule {
   std::condition_variable cv_;
   RefinementInput pending_, working_;     // the next input (under m_), the worker's
   bool has_pending_ = false, stop_ = false;
-  std::array<double, kMaxFingers> compliance_{};  // the worker's last (under m_)
+  std::array<SeriesCompliance, kMaxFingers> compliance_{};  // the worker's last (under m_)
   RefinedRegions gathered_, ready_;               // the worker's; its last, for the step (under m_)
   bool regions_ready_ = false;                    // under m_
   std::atomic<std::uint64_t> builds_{0}, updates_{0}, skipped_{0};

@@ -2,10 +2,12 @@
 """Combine the per-simulator JSON files of tools/bench/peers/run into one object and print the
 markdown table.
 
-Usage: report.py OUT.json IN.json [IN.json ...]
-An input that is missing or not JSON (a script that failed) becomes an error row.
+Usage: report.py [--print table|json] [--commit REV] OUT.json IN.json [IN.json ...]
+--print json prints the combined object (one line) instead of the table; --commit names the
+server's commit in it. An input that is missing or not JSON (a script that failed) becomes an error row.
 """
 
+import argparse
 import json
 import os
 import platform
@@ -74,8 +76,30 @@ def notes_cell(res):
     return "; ".join(p for p in parts if p).replace("|", "/")
 
 
+def print_table(rows):
+    print("| simulator / solver | version | model mapping | largest stable dt |"
+          " CPU s per sim s at 1 ms | CPU s per sim s at largest stable dt | notes |")
+    print("|---|---|---|---|---|---|---|")
+    for res in rows:
+        runs = res.get("runs") or []
+        name = f"{res.get('simulator', '')} {res.get('variant', '')}".strip()
+        print(f"| {name} | {res.get('version', '')} | {res.get('mapping_short', res.get('mapping', ''))} |"
+              f" {dt_cell(res)} | {cpu_cell(run_at(runs, 1.0))} |"
+              f" {cpu_cell(run_at(runs, res.get('largest_stable_dt_ms')))} | {notes_cell(res)} |")
+    print()
+    print("CPU s per sim s: CPU seconds spent stepping per simulated second (single thread)."
+          " * = the run hit the wall-time cap before the end; the figure is from the part it ran."
+          " (x, unstable) = CPU rate until the run failed.")
+
+
 def main():
-    out_path, inputs = sys.argv[1], sys.argv[2:]
+    ap = argparse.ArgumentParser(description="Combine the peers' JSON and print it or its table.")
+    ap.add_argument("--print", choices=("table", "json"), default="table")
+    ap.add_argument("--commit", default="unknown", help="the server's commit")
+    ap.add_argument("out_path")
+    ap.add_argument("inputs", nargs="+")
+    a = ap.parse_args()
+    out_path, inputs = a.out_path, a.inputs
     sources, rows = [], []
     for path in inputs:
         name = os.path.splitext(os.path.basename(path))[0]
@@ -93,6 +117,7 @@ def main():
     combined = {
         "scene": "tools/scenes/hanging_square.toml (0.5 m square, 529 vertices, 968 triangles, top row pinned)",
         "date": time.strftime("%Y-%m-%d %H:%M:%S"),
+        "commit": a.commit,
         "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
                     "python": platform.python_version()},
         "cpu_time": "time.process_time of the stepping only (checks excluded), single thread; "
@@ -105,19 +130,10 @@ def main():
     with open(out_path, "w") as f:
         json.dump(combined, f, indent=1)
 
-    print("| simulator / solver | version | model mapping | largest stable dt |"
-          " CPU s per sim s at 1 ms | CPU s per sim s at largest stable dt | notes |")
-    print("|---|---|---|---|---|---|---|")
-    for res in rows:
-        runs = res.get("runs") or []
-        name = f"{res.get('simulator', '')} {res.get('variant', '')}".strip()
-        print(f"| {name} | {res.get('version', '')} | {res.get('mapping_short', res.get('mapping', ''))} |"
-              f" {dt_cell(res)} | {cpu_cell(run_at(runs, 1.0))} |"
-              f" {cpu_cell(run_at(runs, res.get('largest_stable_dt_ms')))} | {notes_cell(res)} |")
-    print()
-    print("CPU s per sim s: CPU seconds spent stepping per simulated second (single thread)."
-          " * = the run hit the wall-time cap before the end; the figure is from the part it ran."
-          " (x, unstable) = CPU rate until the run failed.")
+    if a.print == "json":
+        print(json.dumps(combined))
+    else:
+        print_table(rows)
 
 
 if __name__ == "__main__":
