@@ -140,6 +140,12 @@ def test_stability_quick_map():
             if c["dt_ms"] == 1.0:  # direct coupling at the haptic rate passes everything
                 assert c["pass"], c
                 assert c["max_penetration_mm"] <= 0.5, c
+            elif c["contact_ticks"] > 0:
+                # The multirate path, where its stroke touched the cloth: the cloth no more than
+                # 2 mm inside the proxy. (With every contact's normal tilted by the proxy's whole
+                # expected motion, the 20 ms stroke at 0.5 m/s rendered a drag several times its
+                # normal force and read 2.86 mm: FingertipContact::place.)
+                assert c["pass"], c
         elif c["restores"]:  # alpha 0.5 on the 1000x stiffer cloth blows up, then is damped
             assert c["alpha_fallbacks"] == 1 and c["stiffness_scale"] >= 100, c
     for r in j["random"]:

@@ -19,9 +19,10 @@ class ContactStepRules {
   /// Where the proxy is expected at the end of the step, from where it is (x), its own last
   /// displacement and how far its target moved since the last step.
   virtual Vec3 expected_proxy(const Vec3& x, const Vec3& last_displacement, const Vec3& target_moved) const = 0;
-  /// The proxy position a new sample's normal is placed against (place()): the step's start or
-  /// its expected end.
-  virtual const Vec3& placing_proxy(const Vec3& start, const Vec3& end) const = 0;
+  /// How far the sphere is expected to move relative to a contact's point over the step, from
+  /// the proxy's expected motion and the point's (place() tilts the contact's normal by the
+  /// part across it): none in a short step, where it is a few hundredths of a millimetre.
+  virtual Vec3 relative_motion(const Vec3& proxy_motion, const Vec3& point_motion) const = 0;
   /// The normal stiffness of the penalty pressure kw linearized at depth d (m).
   virtual double pressure_stiffness(double kw, double depth, double stiffening_depth) const = 0;
   /// The spring's stiffness the integrator's one-sided line search uses (0: none).
@@ -47,7 +48,7 @@ class ShortStepRules final : public ContactStepRules {
   Vec3 expected_proxy(const Vec3& x, const Vec3& last_displacement, const Vec3&) const override {
     return x + last_displacement;
   }
-  const Vec3& placing_proxy(const Vec3& start, const Vec3&) const override { return start; }
+  Vec3 relative_motion(const Vec3&, const Vec3&) const override { return Vec3::Zero(); }
   // Stiffening with depth, kw (1 + d / d_s): the sphere's contact patch grows with depth
   // (docs/contact.md, 'The model').
   double pressure_stiffness(double kw, double depth, double stiffening_depth) const override {
@@ -80,7 +81,9 @@ class LongStepRules final : public ContactStepRules {
   Vec3 expected_proxy(const Vec3& x, const Vec3&, const Vec3& target_moved) const override {
     return x + target_moved;
   }
-  const Vec3& placing_proxy(const Vec3&, const Vec3& end) const override { return end; }
+  Vec3 relative_motion(const Vec3& proxy_motion, const Vec3& point_motion) const override {
+    return proxy_motion - point_motion;
+  }
   double pressure_stiffness(double kw, double, double) const override { return kw; }
   // The long steps revise their set as before, without the line search.
   double line_search_stiffness(double) const override { return 0.0; }

@@ -136,7 +136,8 @@ class FingertipContact final : public cloth::StepContacts {
   void ensure_candidates(int f, const Vec3& centre, double motion);
   void find_samples(int f, const cloth::ClothState& s, const Vec3& proxy_at);
   void make_spring(int f, const Sample& q, cloth::PointSpring& sp) const;
-  bool place(Sample& q, const Vec3& x, const Vec3& p0, const Vec3& at) const;
+  bool place(Sample& q, const Vec3& x, const Vec3& p0, const Vec3& motion) const;
+  bool slides(const Sample* before) const;
   void linearize_pressure(Sample& q) const;
   void decide_friction(int f, Sample& q) const;
   void set_coupling_target(cloth::ProxyNode& P, const FingerTarget& device) const;

@@ -125,12 +125,14 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
       q.id = first_[t] + k;
       q.tri = t;
       q.w = w;
-      if (!place(q, x, p, steps_.placing_proxy(p, proxy_at))) return;
       while (j < F.prev.size() && F.prev[j].id < q.id) ++j;
-      if (j < F.prev.size() && F.prev[j].id == q.id) {  // a contact that persists: its friction state
-        q.anchor = F.prev[j].anchor;
-        q.slipping = F.prev[j].slipping;
-        q.fn = F.prev[j].fn;
+      const Sample* before = j < F.prev.size() && F.prev[j].id == q.id ? &F.prev[j] : nullptr;
+      const Vec3 motion = slides(before) ? steps_.relative_motion(proxy_at - p, h_ * v) : Vec3::Zero();
+      if (!place(q, x, p, motion)) return;
+      if (before) {  // a contact that persists: its friction state
+        q.anchor = before->anchor;
+        q.slipping = before->slipping;
+        q.fn = before->fn;
       }
       decide_friction(f, q);
       F.now.push_back(q);
@@ -152,26 +154,42 @@ void FingertipContact::find_samples(int f, const cloth::ClothState& s, const Vec
 // held by the stiffness at its start, and with the secant of the stiffening law the stability
 // map's 40 ms stroke cell goes deeper into a fingertip than allowed (docs/contact.md, 'The model').
 // A contact's geometry for the step, from its point x and the proxy p0 at the start. The
-// penalty spring acts across the sphere's tangent plane where the proxy is expected at the end
-// of the step (at): normal n = (x - at) / |x - at|, and the depth at the start measured along
-// it, depth0 = r - n . (x - p0), so the spring's depth depth0 - n . (dx - dp) is that plane's
-// (the end state's geometry, as backward Euler takes its forces, eq. 8). Linearized about the
-// start instead, a proxy that slides s over the step is pushed back by F s / r, its normals
-// pointing from where it was (a 20 ms global step of a 30 mm/s stroke: 10% of the normal
-// force). Friction keeps the start's tangent plane nt, where its anchor was taken
+// penalty spring acts across the sphere's tangent plane where the sphere is expected at the end
+// of the step relative to that point (at): normal n = (x - at) / |x - at|, and the depth at the
+// start measured along it, depth0 = r - n . (x - p0), so the spring's depth depth0 - n . (dx -
+// dp) is that plane's (the end state's geometry, as backward Euler takes its forces, eq. 8).
+// Linearized about the start instead, a proxy that slides s over the step is pushed back by
+// F s / r, its normals pointing from where it was (a 20 ms global step of a 30 mm/s stroke: 10%
+// of the normal force). Only the slide tilts the normal: at = p0 + (I - n0 n0^T) m, n0 the
+// start's normal and m the sphere's expected motion relative to the point (`motion`: the
+// proxy's expected motion less the point's, h v, and none where the contact sticks, slides()).
+// Taken from the proxy's whole expected motion for every contact, the stability map's strokes
+// with friction 0.6 tilted the normals of points the sphere drags along by the 4-10 mm a
+// 20-40 ms step moves the device, and the response model rendered a drag of up to 8 times the
+// normal force (9 of the map's 36 multirate cells 2.8-7.7 mm inside the proxy, 2 before).
+// Friction keeps the start's tangent plane nt = n0, where its anchor was taken
 // (decide_friction, revise_friction): moved with the normal, the 25 Hz stroke's friction
 // chattered. Returns false where the point is the sphere's centre (no normal).
-bool FingertipContact::place(Sample& q, const Vec3& x, const Vec3& p0, const Vec3& at) const {
+bool FingertipContact::place(Sample& q, const Vec3& x, const Vec3& p0, const Vec3& motion) const {
+  const double d0 = (x - p0).norm();
+  if (d0 < 1e-12) return false;
+  const Vec3 n0 = (x - p0) / d0;
+  const Vec3 at = p0 + (motion - n0 * n0.dot(motion));
   const double d = (x - at).norm();
   if (d < 1e-12) return false;
   q.n = (x - at) / d;
-  const double d0 = (x - p0).norm();
-  q.nt = d0 > 1e-12 ? Vec3((x - p0) / d0) : q.n;
+  q.nt = n0;
   q.depth0 = p_.radius - q.n.dot(x - p0);
   linearize_pressure(q);
   q.x0 = x;
   q.anchor = x - p0;
   return true;
+}
+
+// Whether a contact is expected to slide over the step (place): without friction always; with
+// it where the last step found it slipping. A new contact starts at its anchor, sticking.
+bool FingertipContact::slides(const Sample* before) const {
+  return !(p_.friction > 0.0) || (before && before->slipping);
 }
 
 // How deep the sphere (centre c) is past the cloth's point nearest its centre among finger f's
@@ -250,7 +268,9 @@ bool FingertipContact::add_contacts(int f, const std::vector<Vec3>& x_new, const
       q.id = id;
       q.tri = t;
       q.w = w;
-      if (!place(q, point(s0_->x, t, q.b), p0, steps_.placing_proxy(p0, p1))) return;
+      const Vec3 x0 = point(s0_->x, t, q.b);
+      const Vec3 motion = slides(nullptr) ? steps_.relative_motion(p1 - p0, x1 - x0) : Vec3::Zero();
+      if (!place(q, x0, p0, motion)) return;
       decide_friction(f, q);
       F.now.push_back(q);
     });
