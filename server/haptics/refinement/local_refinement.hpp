@@ -84,12 +84,11 @@ class LocalRefinement {
                   const Vec3& gravity, const RefinementParams& p);
 
   /// After a global step: the children follow the cloth and carry the forces of the step's
-  /// fingertips; compliance(f) is then what the next step puts in series with finger f.
+  /// fingertips; series(f) is then what the next step puts in series with finger f.
   void update(const RefinementInput& in);
 
   /// Finger f's child, if it has one now.
   const RefinedContact* child(int f) const { return child_[f].get(); }
-  double compliance(int f) const { return compliance_[f].c; }
   /// What the next step puts in series with finger f: the compliance and the axis it acts along.
   const SeriesCompliance& series(int f) const { return compliance_[f]; }
   double finest() const { return spec_.finest; }
